@@ -1,0 +1,189 @@
+"""The scene description: plain dataclasses, saved as `scene.json` plus `.npy` arrays.
+
+Units: world units are metres (Blender's); radiance in W/(m^2 sr) per linear RGB channel;
+medium coefficients per world unit. Arrays are structure-of-arrays with the shapes given
+on each field. Objects refer to one another by name (a mesh names its materials, a mesh
+or the scene names its medium), so a scene file reads like the scene.
+
+Validation and the folder format live in `renderer.scenefile`; `renderer.compile` flattens
+a Scene into the kernels' arrays.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+SCENE_FORMAT_VERSION = 1
+
+RGB = tuple[float, float, float]
+
+
+@dataclass
+class Camera:
+    """Perspective pinhole camera. Looks down its local -Z axis with +Y up (Blender's)."""
+
+    to_world: np.ndarray = field(default_factory=lambda: np.eye(4))  # (4, 4) float64, camera-to-world
+    fov: float = 40.0  # degrees, full angle along `fov_axis`, in (0, 180)
+    fov_axis: str = "x"  # "x" (image width) or "y" (image height)
+    shift: tuple[float, float] = (0.0, 0.0)  # Blender lens shift, in units of the larger image side
+    clip_start: float = 1e-4  # world units; nothing nearer is seen
+    clip_end: float = 1e30  # world units; nothing farther is seen
+
+
+@dataclass
+class Film:
+    width: int = 128
+    height: int = 128
+
+
+@dataclass
+class Lobe:
+    """One BSDF lobe of a material; a material's BSDF is the sum of its weighted lobes.
+
+    kind:
+      "diffuse"        Lambertian reflection, albedo `color`.
+      "dielectric"     smooth glass: Fresnel reflection + refraction, `ior` = inside / outside.
+      "conductor"      smooth mirror tinted by `color` (Cycles' Glossy at roughness 0).
+      "rough_conductor" GGX microfacet reflection, alpha = roughness^2, F0 = `color`
+                        (Schlick), visible-normal sampling.
+      "plastic"        rough coated diffuse: GGX dielectric coat (ior, roughness) over a
+                        diffuse base of albedo `color`.
+      "transparent"    straight pass-through tinted by `color` (Cycles' Transparent BSDF).
+    """
+
+    kind: str
+    weight: RGB = (1.0, 1.0, 1.0)  # multiplies the lobe (Mix/Add shader weights)
+    color: RGB = (0.8, 0.8, 0.8)
+    roughness: float = 0.0  # Blender roughness in [0, 1]; alpha = roughness^2
+    ior: float = 1.5  # > 0; the medium behind the front face over the one in front
+    sides: str = "both"  # "front", "back" or "both": faces on which the lobe exists
+
+
+@dataclass
+class Material:
+    """Surface appearance. No lobes and no emission = an invisible interface (a medium boundary)."""
+
+    name: str
+    lobes: list[Lobe] = field(default_factory=list)
+    emission: RGB = (0.0, 0.0, 0.0)  # radiance leaving the surface, W/(m^2 sr)
+    emission_sides: str = "front"  # "front", "back" or "both"
+
+
+@dataclass
+class Mesh:
+    """A triangle mesh in world space.
+
+    A mesh with a `medium` encloses it: a ray entering through a front face (against the
+    geometric normal, counter-clockwise winding) adds the medium to its stack, leaving
+    removes it. Meshes that carry a medium must be closed.
+    """
+
+    name: str
+    vertices: np.ndarray  # (V, 3) float32, world space
+    indices: np.ndarray  # (T, 3) int32, counter-clockwise seen from the front
+    materials: list[str]  # names of materials; material_ids index this list
+    material_ids: np.ndarray | None = None  # (T,) int32; None = all zero
+    normals: np.ndarray | None = None  # (V, 3) float32 shading normals, or None for flat
+    medium: str | None = None  # name of the medium inside, or None
+
+
+@dataclass
+class PointLight:
+    position: RGB
+    intensity: RGB  # radiant intensity, W/sr per channel
+    type: str = "point"
+
+
+@dataclass
+class SpotLight:
+    """A point light restricted to a cone (Blender spot: smoothstep blend at the edge)."""
+
+    position: RGB
+    direction: RGB  # cone axis, need not be unit
+    intensity: RGB  # W/sr on the axis
+    spot_size: float = 45.0  # degrees, full cone angle
+    blend: float = 0.15  # [0, 1], share of the cone faded by smoothstep
+    type: str = "spot"
+
+
+@dataclass
+class SunLight:
+    """Distant light from `direction` (pointing from the scene toward the sun)."""
+
+    direction: RGB
+    irradiance: RGB  # W/m^2 on a surface facing the sun
+    angle: float = 0.0  # degrees, angular diameter; 0 = delta light
+    type: str = "sun"
+
+
+Light = PointLight | SpotLight | SunLight
+
+
+@dataclass
+class Environment:
+    radiance: RGB = (0.0, 0.0, 0.0)  # constant radiance from every direction at infinity
+
+
+@dataclass
+class Medium:
+    """A participating medium.
+
+    Homogeneous: coefficients sigma_a, sigma_s times `scale` everywhere inside.
+    Grid: those coefficients are further multiplied by `density`, trilinearly interpolated
+    between voxel centres. The grid box spans local corners p0..p1; `to_world` places it:
+    world-to-grid-unit-cube is (to_world * T(p0) * S(p1 - p0))^-1. Outside the box the
+    density is 0.
+
+    Emission is a source per unit length (Cycles' convention): along a ray a path gains
+    the integral of T(t) * emission(t) dt. With `flame`, emission is multiplied by it;
+    with `temperature` (kelvin) blackbody radiance times `blackbody_intensity` is added.
+    """
+
+    name: str
+    type: str = "homogeneous"  # "homogeneous" or "grid"
+    sigma_a: RGB = (0.0, 0.0, 0.0)  # absorption, per world unit, >= 0
+    sigma_s: RGB = (0.0, 0.0, 0.0)  # scattering, per world unit, >= 0
+    scale: float = 1.0  # multiplies sigma_a and sigma_s, >= 0
+    g: float = 0.0  # Henyey-Greenstein asymmetry, |g| < 1
+    emission: RGB = (0.0, 0.0, 0.0)  # W/(m^3 sr) per unit density/flame
+    # grid media only
+    density: np.ndarray | None = None  # (nz, ny, nx) float32, x fastest, >= 0
+    p0: RGB = (0.0, 0.0, 0.0)
+    p1: RGB = (1.0, 1.0, 1.0)
+    to_world: np.ndarray = field(default_factory=lambda: np.eye(4))  # (4, 4) float64
+    flame: np.ndarray | None = None  # (nz', ny', nx') float32 >= 0, scales `emission`
+    temperature: np.ndarray | None = None  # (nz'', ny'', nx'') float32 kelvin >= 0
+    blackbody_intensity: float = 0.0
+
+
+@dataclass
+class IntegratorSettings:
+    """How to render. `max_bounces` means exactly what Cycles' max_bounces means: the number
+    of scattering events (surface or medium) a path may have; 0 = direct light only."""
+
+    spp: int = 64
+    max_bounces: int = 8
+    seed: int = 0
+    rr_depth: int = 3  # Russian roulette from this bounce on
+    sampling: str = "mis"  # "mis", "nee" (light sampling only) or "bsdf" (BSDF/phase only)
+    transmittance: str = "ratio"  # shadow rays in grids: "ratio" or "delta" tracking
+    distance_sampling: str = "spectral_mis"  # chromatic media: "spectral_mis" or "uniform"
+    equiangular: bool = True  # MIS equiangular + free-flight in homogeneous media
+    majorant_grid: bool = True  # coarse majorant grid walked by DDA (else one global bound)
+    batch_size: int = 65536  # paths traced together
+    time_limit: float = 0.0  # seconds; 0 = none
+
+
+@dataclass
+class Scene:
+    camera: Camera = field(default_factory=Camera)
+    film: Film = field(default_factory=Film)
+    integrator: IntegratorSettings = field(default_factory=IntegratorSettings)
+    materials: list[Material] = field(default_factory=list)
+    meshes: list[Mesh] = field(default_factory=list)
+    lights: list[Light] = field(default_factory=list)
+    media: list[Medium] = field(default_factory=list)
+    environment: Environment = field(default_factory=Environment)
+    medium: str | None = None  # scene-wide medium the camera and every path start in
