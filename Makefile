@@ -1,0 +1,59 @@
+# Haze developer commands. Everything runs inside .venv, which the first command creates.
+
+PYTHON311 ?= python3.11
+VENV := .venv
+PY := $(VENV)/bin/python
+STAMP := $(VENV)/.installed
+NEED_PY311 := Haze needs Python 3.11 (bpy 5.0.1 requires exactly 3.11): install it, e.g. with pyenv or \
+your distribution's python3.11 package
+IS_PY311 := -c 'import sys; sys.exit(sys.version_info[:2] != (3, 11))'
+
+.DEFAULT_GOAL := help
+.PHONY: help venv demo test lint bench extension clean distclean
+
+help:
+	@echo "make demo       render the main example to out/"
+	@echo "make test       lint, then run the test suite"
+	@echo "make lint       ruff check only"
+	@echo "make bench      run the renderer benchmarks"
+	@echo "make extension  build the Blender extension package"
+	@echo "make clean      remove outputs and caches (keeps .venv)"
+	@echo "make distclean  clean, and remove .venv too"
+
+# An existing .venv is reused (pip install is quick when everything is satisfied); only a missing
+# one is created, so python3.11 is needed on PATH only then.
+$(STAMP): requirements.txt
+	@if [ ! -x $(PY) ]; then \
+		$(PYTHON311) $(IS_PY311) >/dev/null 2>&1 || { echo "$(NEED_PY311)"; exit 1; }; \
+		echo "Creating $(VENV) with $(PYTHON311)"; \
+		$(PYTHON311) -m venv $(VENV); \
+	fi
+	@$(PY) $(IS_PY311) || { echo "$(VENV) is not Python 3.11: run 'make distclean' first. $(NEED_PY311)"; exit 1; }
+	$(PY) -m pip install --disable-pip-version-check -r requirements.txt
+	@touch $@
+
+venv: $(STAMP)
+
+demo: $(STAMP)
+	$(PY) examples/demo.py
+
+test: $(STAMP)
+	$(VENV)/bin/ruff check .
+	$(PY) -m pytest -q
+
+lint: $(STAMP)
+	$(VENV)/bin/ruff check .
+
+bench: $(STAMP)
+	$(PY) -m renderer.bench
+
+extension: $(STAMP)
+	$(PY) tools/build_extension.py
+
+clean:
+	rm -rf out dist build bench/cache .pytest_cache .ruff_cache
+	find . -path ./$(VENV) -prune -o \( -name __pycache__ -o -name '*.nbi' -o -name '*.nbc' \) -print \
+		| xargs -r rm -rf
+
+distclean: clean
+	rm -rf $(VENV)
