@@ -73,7 +73,7 @@ MATRIX_FIELDS = frozenset({"to_world"})
 GRID_ARRAYS = ("density", "flame", "temperature")
 # Array file names start with the owner's kind and index: mesh0_Cube_vertices.npy.
 _OWNER_PREFIXES = {"meshes": "mesh", "media": "medium"}
-# A matrix is singular when |det| of its column-normalised linear part is below this.
+# Relative singularity threshold, see _is_singular.
 _SINGULAR_TOLERANCE = 1e-12
 
 
@@ -81,7 +81,7 @@ _SINGULAR_TOLERANCE = 1e-12
 
 
 def save_scene(scene: Scene, folder: str | Path) -> Path:
-    """Validate `scene` and write it to `folder`; returns the path of the written scene.json.
+    """Validate (and so normalise) `scene`, write it to `folder`, return the scene.json path.
 
     Only scene.json and our own array files are (over)written; nothing else in the folder
     is touched, so a scene can live next to a user's other files.
@@ -319,11 +319,16 @@ def _check_unique_names(items: list, path: str) -> set[str]:
 
 
 def _is_singular(linear: np.ndarray) -> bool:
-    """Whether a 3x3 matrix is singular, relative to its scale (columns normalised first)."""
-    norms = np.linalg.norm(linear, axis=0)
-    if not np.all(norms > 0.0) or not np.all(np.isfinite(norms)):
+    """Whether a 3x3 matrix is singular relative to its scale: |det| <= tol * prod(column norms).
+
+    Columns are first divided by their largest entry, so huge or tiny scales neither
+    overflow nor count as singular; a column that overflowed to inf does.
+    """
+    largest = np.abs(linear).max(axis=0)
+    if not np.all(largest > 0.0) or not np.all(np.isfinite(largest)):
         return True
-    return abs(np.linalg.det(linear / norms)) <= _SINGULAR_TOLERANCE
+    scaled = linear / largest
+    return abs(np.linalg.det(scaled)) <= _SINGULAR_TOLERANCE * np.prod(np.linalg.norm(scaled, axis=0))
 
 
 def _check_transform(matrix: np.ndarray, path: str) -> None:
@@ -483,7 +488,8 @@ def _check_grid_box(medium: Medium, path: str) -> None:
     for axis, low, high in zip("xyz", medium.p0, medium.p1):
         _require(low != high, f"{path}.p1", f"equals p0 on the {axis} axis ({high}): the grid box is flat")
     _check_transform(medium.to_world, f"{path}.to_world")
-    box_to_world = medium.to_world[:3, :3] @ np.diag(np.subtract(medium.p1, medium.p0))
+    with np.errstate(over="ignore"):  # an overflowing box is caught as singular just below
+        box_to_world = medium.to_world[:3, :3] @ np.diag(np.subtract(medium.p1, medium.p0))
     _require(not _is_singular(box_to_world), f"{path}.to_world", "singular matrix (combined with p0..p1)")
 
 
