@@ -214,6 +214,17 @@ def test_missing_optional_keys_take_dataclass_defaults(tmp_path: Path) -> None:
     _assert_identical(scene, expected)
 
 
+def test_the_documented_example_loads(tmp_path: Path) -> None:
+    doc = (Path(__file__).parent.parent / "docs" / "scene-format.md").read_text()
+    example = re.search(r"```json\n(.*?)```", doc, re.DOTALL).group(1)
+    (tmp_path / "scene.json").write_text(example)
+    (tmp_path / "arrays").mkdir()
+    np.save(tmp_path / "arrays" / "mesh0_floor_vertices.npy", np.eye(3, dtype=np.float32))
+    np.save(tmp_path / "arrays" / "mesh0_floor_indices.npy", np.array([[0, 1, 2]], np.int32))
+    scene = load_scene(tmp_path)
+    assert (scene.film.width, scene.lights[0].irradiance) == (320, (3.0, 3.0, 3.0))
+
+
 def test_validate_normalises_in_memory_values() -> None:
     scene = _good_scene()
     scene.meshes[0].vertices = scene.meshes[0].vertices.astype(np.float64)
