@@ -214,9 +214,17 @@ def _conform_numbers(value: Any, length: int, path: str) -> tuple[float, ...]:
         raise SceneError(path, f"must be a list of {length} numbers, got {_show(value)}")
     if not all(_is_real(x) for x in value):
         raise SceneError(path, f"must be a list of {length} numbers, got {_show(tuple(value))}")
-    numbers_ = tuple(float(x) for x in value)
-    _require(all(math.isfinite(x) for x in numbers_), path, f"must be finite, got {numbers_}")
-    return numbers_
+    floats = tuple(_to_float(x) for x in value)
+    _require(all(math.isfinite(x) for x in floats), path, f"must be finite, got {floats}")
+    return floats
+
+
+def _to_float(value: numbers.Real) -> float:
+    # float() of a huge JSON integer (e.g. 400 digits) raises; report it as non-finite instead.
+    try:
+        return float(value)
+    except OverflowError:
+        return math.inf
 
 
 def _is_real(value: Any) -> bool:
@@ -226,8 +234,9 @@ def _is_real(value: Any) -> bool:
 def _conform_scalar(value: Any, hint: type, path: str) -> Any:
     if hint is float:
         _require(_is_real(value), path, f"must be a number, got {_show(value)}")
-        _require(math.isfinite(value), path, f"must be finite, got {float(value)}")
-        return float(value)
+        number = _to_float(value)
+        _require(math.isfinite(number), path, f"must be finite, got {number}")
+        return number
     if hint is int:
         is_int = isinstance(value, numbers.Integral) and not isinstance(value, bool | np.bool_)
         _require(is_int, path, f"must be an integer, got {_show(value)}")
@@ -503,6 +512,8 @@ def _read_json(file: Path) -> dict:
         data = json.loads(file.read_text(encoding="utf-8"), object_pairs_hook=_reject_duplicate_keys)
     except (UnicodeDecodeError, json.JSONDecodeError) as error:
         raise SceneError(SCENE_FILE, f"not valid JSON: {error}") from None
+    except OSError as error:
+        raise SceneError(SCENE_FILE, f"cannot read: {error}") from None
     _require(isinstance(data, dict), SCENE_FILE, f"must hold a JSON object, got {_show(data)}")
     return data
 

@@ -458,6 +458,8 @@ _BAD_FOLDERS = [
     (_json_set("materials", {}), "materials", "must be a list"),
     (_json_set("camera.fov", "40"), "camera.fov", "must be a number"),
     (_json_set("film.width", 64.0), "film.width", "must be an integer"),
+    (_json_set("camera.fov", 10**400), "camera.fov", "must be finite"),
+    (_json_set("lights[0].position", [0, 10**400, 0]), "lights[0].position", "must be finite"),
     (_json_set("integrator.majorant_grid", "yes"), "integrator.majorant_grid", "must be true or false"),
     (_json_set("materials[0].lobes[0].color", [1, 1]), "materials[0].lobes[0].color", "list of 3 numbers"),
     (_json_set("camera.to_world", [[1, 0, 0, 0]] * 3), "camera.to_world", "must be a 4x4 matrix"),
