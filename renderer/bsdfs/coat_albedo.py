@@ -1,0 +1,147 @@
+"""Directional albedo E(mu) of a GGX dielectric coat, tabulated offline and loaded at import.
+
+E(mu; roughness, eta) = integral of f_spec(wo, wi) cos(wi) dwi for wo.z = mu, where f_spec
+is the coat's single-scattering GGX reflection with the exact dielectric Fresnel. The
+plastic lobe gives its diffuse base the energy the coat leaves, (1 - E(wo)) (1 - E(wi)) /
+(1 - E_avg) (Kelemen & Szirmay-Kalos 2001; Kulla & Conty 2017), which is reciprocal and
+has albedo exactly E(wo) + color (1 - E(wo)) <= 1.
+
+The table is computed offline (it needs ~1e8 GGX evaluations for 1e-4 accuracy, because
+the visible-normal map has square-root edges that slow the quadrature down) and stored next
+to this file; regenerate with `python -m renderer.bsdfs.coat_albedo` (then touch this file:
+numba's cache keys on the source, and the table is frozen into the compiled kernels).
+
+The table is trilinear in (mu, s, roughness) with s = (eta - 1) / (eta + 1) = sqrt(F0)
+(F0 is nearly quadratic in eta near 1, so s spaces the nodes evenly in reflectance).
+E_avg = 2 integral E(mu) mu dmu is integrated exactly for the piecewise-linear interpolant in
+mu, so the diffuse part's albedo uses the same E as the tabulated lookup (no mismatch
+between the two). Roughness 0 holds the exact smooth-interface Fresnel.
+"""
+
+import math
+import os
+
+import numpy as np
+from numba import njit
+
+from renderer.bsdfs.fresnel import fresnel_dielectric
+from renderer.bsdfs.microfacet import ggx_G1, ggx_G2, ggx_sample_visible_normal, reflect
+
+COAT_ETA_MAX = 4.0  # plastic clamps its coat index to [1, COAT_ETA_MAX]
+N_MU = 32
+N_S = 24
+N_ROUGH = 16
+_S_MAX = (COAT_ETA_MAX - 1.0) / (COAT_ETA_MAX + 1.0)
+_N_QUAD = 384  # midpoint visible-normal quadrature, _N_QUAD^2 points per entry
+_TABLE_PATH = os.path.join(os.path.dirname(__file__), "coat_albedo.npz")
+
+
+@njit(cache=True)
+def _coat_albedo_quadrature(mu, alpha, eta, n):
+    """E(mu) by midpoint quadrature over the visible-normal distribution.
+
+    With h ~ D_wo the reflected estimator is F(wo.h) G2 / G1(wo) (see rough_conductor).
+    """
+    mu = max(mu, 1e-4)
+    wo = (math.sqrt(max(0.0, 1.0 - mu * mu)), 0.0, mu)
+    g1 = ggx_G1(alpha, wo)
+    acc = 0.0
+    for a in range(n):
+        for b in range(n):
+            h = ggx_sample_visible_normal(alpha, wo, (a + 0.5) / n, (b + 0.5) / n)
+            wi = reflect(wo, h)
+            if wi[2] <= 0.0:
+                continue
+            cos_oh = wo[0] * h[0] + wo[1] * h[1] + wo[2] * h[2]
+            acc += fresnel_dielectric(cos_oh, eta)[0] * ggx_G2(alpha, wo, wi) / g1
+    return acc / (n * n)
+
+
+@njit(cache=True)
+def build_tables(n_quad):
+    e = np.zeros((N_ROUGH, N_S, N_MU))
+    e_avg = np.zeros((N_ROUGH, N_S))
+    dmu = 1.0 / (N_MU - 1)
+    for r in range(N_ROUGH):
+        rough = r / (N_ROUGH - 1)
+        for si in range(N_S):
+            s = _S_MAX * si / (N_S - 1)
+            eta = (1.0 + s) / (1.0 - s)
+            for k in range(N_MU):
+                mu = k * dmu
+                if r == 0:
+                    e[r, si, k] = fresnel_dielectric(mu, eta)[0]
+                else:
+                    e[r, si, k] = _coat_albedo_quadrature(mu, rough * rough, eta, n_quad)
+            # 2 * integral of (linear E) * mu over each [mu_k, mu_k+1], exactly.
+            acc = 0.0
+            for k in range(N_MU - 1):
+                m0 = k * dmu
+                m1 = m0 + dmu
+                e0 = e[r, si, k]
+                e1 = e[r, si, k + 1]
+                acc += dmu * (e0 * (2.0 * m0 + m1) + e1 * (m0 + 2.0 * m1)) / 6.0
+            e_avg[r, si] = 2.0 * acc
+    return e, e_avg
+
+
+def _load_tables():
+    with np.load(_TABLE_PATH) as z:
+        e, e_avg = z["e"], z["e_avg"]
+    assert e.shape == (N_ROUGH, N_S, N_MU) and e_avg.shape == (N_ROUGH, N_S), "stale coat table"
+    return np.ascontiguousarray(e, np.float64), np.ascontiguousarray(e_avg, np.float64)
+
+
+if __name__ == "__main__":
+    _e, _e_avg = build_tables(_N_QUAD)
+    np.savez_compressed(_TABLE_PATH, e=_e, e_avg=_e_avg)
+    print("wrote", _TABLE_PATH)
+else:
+    # Global arrays are frozen into the kernels below as constants when they compile.
+    COAT_E, COAT_E_AVG = _load_tables()
+
+
+@njit(cache=True)
+def coat_eta(ior):
+    """The coat's relative index, >= 1 (a coat is seen from outside) and clamped to the table."""
+    eta = ior if ior >= 1.0 else 1.0 / max(ior, 1e-6)
+    return min(eta, COAT_ETA_MAX)
+
+
+@njit(cache=True)
+def _cell(x, n):
+    """Lower node index and fraction of x in [0, 1] on a grid of n nodes."""
+    t = min(max(x, 0.0), 1.0) * (n - 1)
+    i = min(int(t), n - 2)
+    return i, t - i
+
+
+@njit(cache=True)
+def _coords(roughness, eta):
+    s = (eta - 1.0) / (eta + 1.0)
+    ri, rf = _cell(roughness, N_ROUGH)
+    si, sf = _cell(s / _S_MAX, N_S)
+    return ri, rf, si, sf
+
+
+@njit(cache=True)
+def coat_albedo(mu, roughness, eta):
+    """Tabulated E(mu) of the coat (eta >= 1, roughness in [0, 1])."""
+    ri, rf, si, sf = _coords(roughness, eta)
+    ki, kf = _cell(mu, N_MU)
+    acc = 0.0
+    for dr in range(2):
+        wr = rf if dr else 1.0 - rf
+        for ds in range(2):
+            ws = sf if ds else 1.0 - sf
+            row = COAT_E[ri + dr, si + ds]
+            acc += wr * ws * ((1.0 - kf) * row[ki] + kf * row[ki + 1])
+    return acc
+
+
+@njit(cache=True)
+def coat_albedo_avg(roughness, eta):
+    """E_avg = 2 integral E(mu) mu dmu of the same interpolant coat_albedo uses."""
+    ri, rf, si, sf = _coords(roughness, eta)
+    return ((1.0 - rf) * ((1.0 - sf) * COAT_E_AVG[ri, si] + sf * COAT_E_AVG[ri, si + 1])
+            + rf * ((1.0 - sf) * COAT_E_AVG[ri + 1, si] + sf * COAT_E_AVG[ri + 1, si + 1]))

@@ -1,0 +1,51 @@
+"""Smooth dielectric (glass): Fresnel-weighted choice of mirror reflection or refraction.
+
+`ior` is n_inside / n_outside, inside being behind the front face (wo.z > 0 is outside).
+Seen from the back (wo.z < 0) the relative index inverts.
+
+Like Cycles' Glass BSDF (svm/closure.h, bsdf_microfacet.h with zero roughness), `color`
+tints both reflection and refraction, and the choice between them is made with probability
+F, so the weight of either branch is exactly `color`. Cycles does NOT scale refracted
+radiance by 1/eta^2 (its sampled eval is the transmittance tint over pdf 1 - F, with no eta
+factor); we follow Cycles, so a white dielectric is a perfect white furnace (R + T = 1)
+and renders match Cycles. The price is the usual one: the BSDF is not symmetric under
+swapping wo and wi across the interface, which a unidirectional path tracer never needs.
+"""
+
+from numba import njit
+
+from renderer.bsdfs.fresnel import fresnel_dielectric
+
+_ZERO3 = (0.0, 0.0, 0.0)
+
+
+@njit(cache=True)
+def dielectric_eval(color, roughness, ior, wo, wi):
+    """Both branches are delta: no density to evaluate."""
+    return _ZERO3, 0.0
+
+
+@njit(cache=True)
+def dielectric_reflectance(ior, cos_o):
+    """Fresnel reflectance seen from the side of `wo` (cos_o = wo.z, signed)."""
+    eta = ior if cos_o >= 0.0 else 1.0 / ior
+    return fresnel_dielectric(abs(cos_o), eta)[0]
+
+
+@njit(cache=True)
+def dielectric_sample(color, roughness, ior, wo, u1, u2, u3):
+    """Reflect with probability F, else refract. pdf = discrete probability of the branch.
+
+    Only u1 is used (the branch choice); both branches are deterministic given wo.
+    """
+    outside = wo[2] >= 0.0
+    eta = ior if outside else 1.0 / ior  # n_t / n_i for light crossing toward -wo's side
+    cos_i = abs(wo[2])
+    F, cos_t = fresnel_dielectric(cos_i, eta)
+    tint = (color[0], color[1], color[2])
+    if u1 < F:
+        return (-wo[0], -wo[1], wo[2]), tint, F, True
+    # Snell: the tangential part shrinks by 1/eta, the normal part flips to the far side.
+    side = 1.0 if outside else -1.0
+    wi = (-wo[0] / eta, -wo[1] / eta, -side * cos_t)
+    return wi, tint, 1.0 - F, True
