@@ -1,0 +1,166 @@
+"""Flatten a Scene into the arrays the kernels read.
+
+Every mesh is merged into one triangle soup (a global triangle index per hit); materials
+become the lobe table of `renderer.bsdfs`; lights become a LightTable; media become the
+MediaTable of `renderer.media`. Nothing here runs per ray.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import NamedTuple
+
+import numpy as np
+
+from .bsdfs.table import build_material_table
+from .lights.table import LightTable, build_light_table
+from .scene import Scene
+
+SIDES = {"front": 1, "back": 2, "both": 3}
+MAX_STACK = 4
+
+
+class Geometry(NamedTuple):
+    """Per-triangle tables, T triangles (float32 unless noted).
+
+    v0, e1, e2 (T, 3): vertex 0 and the edges v1 - v0, v2 - v0.
+    ng (T, 3): unit geometric normal, the front side (counter-clockwise winding).
+    sn (T, 3, 3): shading normals at the three vertices (copies of ng when the mesh has none).
+    material (T,) int32: global material index.
+    medium (T,) int32: medium enclosed by the triangle's mesh, -1 for none.
+    light (T,) int32: row in the light table, -1 when the triangle does not emit.
+    """
+
+    v0: np.ndarray
+    e1: np.ndarray
+    e2: np.ndarray
+    ng: np.ndarray
+    sn: np.ndarray
+    material: np.ndarray
+    medium: np.ndarray
+    light: np.ndarray
+
+
+class CameraParams(NamedTuple):
+    """to_world (4, 4) float64; tan_half (x, y) of the half field of view; shift (x, y) in
+    units of the image plane's half extent; clip (start, end)."""
+
+    to_world: np.ndarray
+    tan_half: np.ndarray
+    shift: np.ndarray
+    clip: np.ndarray
+
+
+@dataclass
+class CompiledScene:
+    vertices: np.ndarray  # (V, 3) float32, merged
+    indices: np.ndarray  # (T, 3) int32, merged
+    geometry: Geometry
+    materials: tuple  # renderer.bsdfs material table
+    lights: LightTable
+    media: tuple  # renderer.media MediaTable
+    camera: CameraParams
+    width: int
+    height: int
+    world_medium: int  # -1 for none
+    has_media: bool  # any medium at all: the integrator skips every medium step without
+    needs_shadow_walk: bool  # shadow rays must walk through interfaces / transparent surfaces
+    scene_radius: float
+
+
+def _merge_meshes(scene: Scene, material_index: dict[str, int], medium_index: dict[str, int]):
+    verts, idx, mats, meds = [], [], [], []
+    offset = 0
+    for mesh in scene.meshes:
+        v = np.asarray(mesh.vertices, np.float32).reshape(-1, 3)
+        i = np.asarray(mesh.indices, np.int32).reshape(-1, 3)
+        local_ids = (np.zeros(i.shape[0], np.int32) if mesh.material_ids is None
+                     else np.asarray(mesh.material_ids, np.int32))
+        lut = np.array([material_index[name] for name in mesh.materials] or [0], np.int32)
+        verts.append(v)
+        idx.append(i + offset)
+        mats.append(lut[local_ids])
+        meds.append(np.full(i.shape[0], -1 if mesh.medium is None else medium_index[mesh.medium], np.int32))
+        offset += v.shape[0]
+    if not verts:
+        return (np.zeros((0, 3), np.float32), np.zeros((0, 3), np.int32), np.zeros(0, np.int32),
+                np.zeros(0, np.int32))
+    return np.concatenate(verts), np.concatenate(idx), np.concatenate(mats), np.concatenate(meds)
+
+
+def _camera(scene: Scene) -> CameraParams:
+    cam, film = scene.camera, scene.film
+    aspect = film.width / film.height
+    t = math.tan(math.radians(cam.fov) * 0.5)
+    tan_half = np.array([t, t / aspect] if cam.fov_axis == "x" else [t * aspect, t], np.float64)
+    # Blender shifts by a fraction of the larger image side; the image plane spans 2 * tan_half.
+    larger = max(tan_half)
+    shift = np.array(cam.shift, np.float64) * 2.0 * larger
+    return CameraParams(np.asarray(cam.to_world, np.float64), tan_half, shift,
+                        np.array([cam.clip_start, cam.clip_end], np.float64))
+
+
+def compile_scene(scene: Scene) -> CompiledScene:
+    material_index = {m.name: i for i, m in enumerate(scene.materials)}
+    medium_index = {m.name: i for i, m in enumerate(scene.media)}
+    vertices, indices, tri_mat, tri_med = _merge_meshes(scene, material_index, medium_index)
+    emission = np.array([m.emission for m in scene.materials] or np.zeros((0, 3)), np.float64)
+    sides = np.array([SIDES[m.emission_sides] for m in scene.materials] or np.zeros(0), np.int32)
+    if vertices.shape[0]:
+        lo, hi = vertices.min(axis=0), vertices.max(axis=0)
+        radius = float(0.5 * np.linalg.norm(hi - lo)) or 1.0
+    else:
+        radius = 1.0
+    v0 = vertices[indices[:, 0]].astype(np.float64)
+    v1 = vertices[indices[:, 1]].astype(np.float64)
+    v2 = vertices[indices[:, 2]].astype(np.float64)
+    lights = build_light_table((v0, v1, v2, tri_mat), emission, sides, scene.lights, scene.environment,
+                               radius)
+    geometry = _geometry_from_meshes(scene, vertices, indices, tri_mat, tri_med, lights.tri_light)
+    materials = build_material_table(scene.materials)
+    media = (np.zeros(1, np.int32),)  # TEMPORARY until renderer.media lands
+    world_medium = -1 if scene.medium is None else medium_index[scene.medium]
+    has_media = bool(len(scene.media)) and (world_medium >= 0 or bool((tri_med >= 0).any()))
+    # Shadow rays need an interface walk when a surface can let them through: a medium
+    # boundary (meshes with media) or a material without opaque lobes on some side.
+    see_through = [_lets_light_through(m) for m in scene.materials]
+    used = np.unique(tri_mat)
+    needs_walk = bool((tri_med >= 0).any()) or any(see_through[i] for i in used)
+    return CompiledScene(vertices, indices, geometry, materials, lights, media, _camera(scene),
+                         scene.film.width, scene.film.height, world_medium, has_media, needs_walk, radius)
+
+
+def _lets_light_through(material) -> bool:
+    kinds = {lobe.kind for lobe in material.lobes}
+    return not material.lobes or "transparent" in kinds
+
+
+def _geometry_from_meshes(scene, vertices, indices, tri_mat, tri_med, tri_light) -> Geometry:
+    per_mesh = []
+    for mesh in scene.meshes:
+        t = np.asarray(mesh.indices).reshape(-1, 3)
+        if mesh.normals is None:
+            per_mesh.append((t.shape[0], None))
+        else:
+            n = np.asarray(mesh.normals, np.float32).reshape(-1, 3)
+            per_mesh.append((t.shape[0], n[t]))
+    v0 = vertices[indices[:, 0]]
+    e1 = vertices[indices[:, 1]] - v0
+    e2 = vertices[indices[:, 2]] - v0
+    cr = np.cross(e1.astype(np.float64), e2.astype(np.float64))
+    norm = np.linalg.norm(cr, axis=1, keepdims=True)
+    ng = np.where(norm > 0, cr / np.maximum(norm, 1e-300), np.array([0.0, 0.0, 1.0])).astype(np.float32)
+    sn = np.repeat(ng[:, None, :], 3, axis=1)
+    start = 0
+    for count, n in per_mesh:
+        if n is not None:
+            ln = np.linalg.norm(n, axis=2, keepdims=True)
+            good = (ln > 0).all(axis=(1, 2))
+            block = sn[start:start + count]
+            block[good] = (n / np.maximum(ln, 1e-30))[good]
+        start += count
+    return Geometry(np.ascontiguousarray(v0, np.float32), np.ascontiguousarray(e1, np.float32),
+                    np.ascontiguousarray(e2, np.float32), np.ascontiguousarray(ng),
+                    np.ascontiguousarray(sn, np.float32), np.ascontiguousarray(tri_mat, np.int32),
+                    np.ascontiguousarray(tri_med, np.int32), np.ascontiguousarray(tri_light, np.int32))

@@ -1,0 +1,556 @@
+"""The wavefront volumetric path tracer's kernels: everything between two Embree calls.
+
+Per bounce the Python driver (renderer.integrator.wavefront) makes one closest-hit call for
+the live paths and one occlusion call (or an interface walk) for their shadow rays; these
+kernels do the rest, per path, as scalar code:
+
+  start_paths     camera rays and initial medium stacks
+  shade           media along the segment, emission, next-event estimation, BSDF/phase
+                  sampling, Russian roulette
+  resolve_shadows add unoccluded shadow contributions
+  walk_shadows    one step of shadow rays through interfaces and media
+  compact_*       move live rows to the front
+  splat           add finished paths to the film
+
+Conventions: `max_bounces` counts scattering events exactly like Cycles: the vertex a path
+is shading has index `depth` (the number of earlier scattering events); next-event
+estimation and emission found by BSDF sampling at that vertex belong to paths of `depth`
+bounces, so a vertex is shaded only while depth <= max_bounces. Passing through an
+interface (a surface with no lobes, or a transparent lobe) is not a bounce.
+
+cfg (int64 array): see CFG_* indices.
+"""
+
+import math
+
+import numpy as np
+from numba import njit
+
+from ..bsdfs.material import bsdf_eval, bsdf_has_lobes, bsdf_sample
+from ..camera import camera_ray
+from ..kernels.rng import path_key, uniform
+from ..kernels.vecmath import add, dot, madd, max3, mul, neg, normalize, onb, scale, sub, to_local, to_world
+from ..lights.sample import (
+    connect_light,
+    escaped_radiance,
+    light_has_point,
+    light_point,
+    pick_light,
+    triangle_light_pdf,
+)
+from .media_api import (
+    nee_vertex,
+    phase_pdf,
+    sample_distance,
+    sample_phase,
+    stack_has_grid,
+    stack_is_empty,
+    stack_push,
+    stack_remove,
+    transmittance,
+)
+
+CFG_MAX_BOUNCES = 0
+CFG_RR_DEPTH = 1
+CFG_SAMPLING = 2  # 0 mis, 1 nee only, 2 bsdf only
+CFG_DELTA_TR = 3  # shadow transmittance by delta tracking (else ratio)
+CFG_UNIFORM_CHANNEL = 4  # distance sampling picks channels uniformly (else by throughput)
+CFG_EQUIANGULAR = 5
+CFG_HAS_MEDIA = 6
+CFG_WALK_SHADOWS = 7
+CFG_SIZE = 8
+
+SAMPLING_MIS, SAMPLING_NEE, SAMPLING_BSDF = 0, 1, 2
+MAX_CROSSINGS = 256  # interfaces a path may pass before it is ended (guards open meshes)
+RAY_FAR = 1e30
+
+
+@njit(cache=True)
+def offset_origin(x, ng, direction):
+    """Move x off its surface to the side `direction` leaves on (Embree has no tnear)."""
+    eps = 1e-4 * (1.0 + max(abs(x[0]), max(abs(x[1]), abs(x[2]))))
+    if dot(direction, ng) < 0.0:
+        eps = -eps
+    return madd(x, ng, eps)
+
+
+@njit(cache=True)
+def power_heuristic(a, b):
+    a2 = a * a
+    b2 = b * b
+    if a2 + b2 <= 0.0:
+        return 0.0
+    return a2 / (a2 + b2)
+
+
+@njit(cache=True)
+def _vec(a, i):
+    return (float(a[i, 0]), float(a[i, 1]), float(a[i, 2]))
+
+
+@njit(cache=True)
+def _put(a, i, v):
+    a[i, 0] = v[0]
+    a[i, 1] = v[1]
+    a[i, 2] = v[2]
+
+
+@njit(cache=True)
+def start_paths(ps, pixel_of_pid, cam, width, height, seed, first, n, sample_base, init_stack):
+    """Camera rays for linear sample indices first .. first + n - 1 of a pass: index k is
+    pixel k % (width * height), sample sample_base + k // (width * height)."""
+    to_world_m, tan_half, shift, clip = cam
+    npix = width * height
+    for i in range(n):
+        k = first + i
+        pixel = k % npix
+        sample = sample_base + k // npix
+        key = path_key(seed, pixel, sample)
+        o, d = camera_ray(to_world_m, tan_half, shift, pixel % width, pixel // width, width, height,
+                          uniform(key, 0), uniform(key, 1))
+        _put(ps.o, i, madd(o, d, clip[0]))
+        _put(ps.d, i, d)
+        ps.tmax[i] = clip[1] - clip[0]
+        _put(ps.beta, i, (1.0, 1.0, 1.0))
+        ps.pid[i] = i
+        ps.key[i] = key
+        ps.dim[i] = 2
+        ps.depth[i] = 0
+        ps.crossings[i] = 0
+        ps.mis_pdf[i] = 0.0
+        _put(ps.mis_o, i, o)
+        for j in range(init_stack.shape[0]):
+            ps.stack[i, j] = init_stack[j]
+        ps.alive[i] = 1
+        pixel_of_pid[i] = pixel
+
+
+@njit(cache=True)
+def _emit_shadow(sh, s, x, wi, dist, contrib, pid, key, dim, stack):
+    _put(sh.o, s, x)
+    _put(sh.d, s, wi)
+    sh.tmax[s] = dist
+    _put(sh.contrib, s, contrib)
+    sh.pid[s] = pid
+    sh.key[s] = key
+    sh.dim[s] = dim
+    for j in range(stack.shape[0]):
+        sh.stack[s, j] = stack[j]
+    sh.alive[s] = 1
+
+
+@njit(cache=True)
+def _shadow_transmittance(md, cfg, stack, x, wi, dist, key, dim):
+    """Transmittance of the whole shadow segment when it crosses no interface (the stack is
+    constant along it); with interfaces the walk accumulates it piece by piece instead."""
+    if cfg[CFG_HAS_MEDIA] == 0 or cfg[CFG_WALK_SHADOWS] != 0 or stack_is_empty(stack):
+        return (1.0, 1.0, 1.0), dim
+    return transmittance(md, stack, x, wi, 0.0, dist, key, dim, cfg[CFG_DELTA_TR] != 0)
+
+
+@njit(cache=True)
+def _light_sample_weight(lt, light, pdf_light, pdf_scatter, is_delta, sampling):
+    """MIS weight of a light sample; pdf_light already includes the selection probability."""
+    if is_delta or sampling == SAMPLING_NEE:
+        return 1.0
+    return power_heuristic(pdf_light, pdf_scatter)
+
+
+@njit(cache=True)
+def _hit_weight(mis_pdf, pdf_light, sampling):
+    """MIS weight of emission found by BSDF/phase sampling (mis_pdf 0 = camera or delta)."""
+    if mis_pdf <= 0.0 or sampling == SAMPLING_BSDF:
+        return 1.0
+    if sampling == SAMPLING_NEE:
+        return 0.0
+    return power_heuristic(mis_pdf, pdf_light)
+
+
+@njit(cache=True)
+def _medium_nee(ps, i, md, lt, cfg, x, d, beta, key, dim, sh, s, light, lp, weight):
+    """Next-event estimation from medium point x (with path weight `weight` to reach it)."""
+    pmf = lt[7]
+    wi, dist, le, pdf, is_delta = connect_light(lt, light, lp, x, uniform(key, dim), uniform(key, dim + 1))
+    dim += 2
+    stack = ps.stack[i]
+    p_light = pdf * pmf[light]
+    if p_light <= 0.0 or max3(le) <= 0.0:
+        return s, dim
+    ph = phase_pdf(md, stack, x, d, wi)
+    w = _light_sample_weight(lt, light, p_light, ph, is_delta, cfg[CFG_SAMPLING])
+    c = scale(mul(mul(beta, weight), le), ph * w / p_light)
+    if max3(c) <= 0.0:
+        return s, dim
+    tr, dim = _shadow_transmittance(md, cfg, stack, x, wi, dist, key, dim)
+    c = mul(c, tr)
+    _emit_shadow(sh, s, x, wi, dist * 0.9999 if dist < RAY_FAR else RAY_FAR, c, ps.pid[i], key, dim, stack)
+    return s + 1, dim + 64
+
+
+@njit(cache=True)
+def _russian_roulette(ps, i, key, dim, rr_depth):
+    """Survive with probability max(throughput) (capped at 1) after rr_depth bounces."""
+    if ps.depth[i] < rr_depth:
+        return True, dim
+    beta = _vec(ps.beta, i)
+    q = min(1.0, max3(beta))
+    u = uniform(key, dim)
+    dim += 1
+    if q <= 0.0 or u >= q:
+        return False, dim
+    _put(ps.beta, i, scale(beta, 1.0 / q))
+    return True, dim
+
+
+@njit(cache=True)
+def shade(n, ps, prim, bu, bv, geo, mt, lt, env_light, sun_rows, md, cfg, L, sh):
+    """Shade the closest hits of live paths 0..n-1 (prim -1 = escaped; ps.tmax holds the hit
+    distance). Writes new rays into ps, kills finished paths, appends shadow rays to sh.
+    Returns the number of shadow rays written."""
+    max_bounces = cfg[CFG_MAX_BOUNCES]
+    sampling = cfg[CFG_SAMPLING]
+    has_media = cfg[CFG_HAS_MEDIA] != 0
+    s = 0
+    cdf = lt[8]
+    pmf = lt[7]
+    for i in range(n):
+        pid = ps.pid[i]
+        key = ps.key[i]
+        dim = ps.dim[i]
+        o = _vec(ps.o, i)
+        d = _vec(ps.d, i)
+        beta = _vec(ps.beta, i)
+        depth = ps.depth[i]
+        p = prim[i]
+        t_hit = float(ps.tmax[i]) if p >= 0 else RAY_FAR
+        stack = ps.stack[i]
+
+        # --- participating media along [0, t_hit) ---------------------------------------
+        if has_media and not stack_is_empty(stack):
+            did_nee = False
+            homogeneous = not stack_has_grid(md, stack)
+            if homogeneous and sampling != SAMPLING_BSDF and depth <= max_bounces and cdf.shape[0] > 1:
+                # Decoupled next-event vertex (as Cycles): a point on the segment chosen by
+                # equiangular/free-flight MIS toward a light point, independent of where the
+                # path itself goes on.
+                light = pick_light(cdf, uniform(key, dim))
+                lp = light_point(lt, light, uniform(key, dim + 1), uniform(key, dim + 2))
+                dim += 3
+                use_eq = cfg[CFG_EQUIANGULAR] != 0 and light_has_point(lt, light)
+                tn, wn, dim = nee_vertex(md, stack, o, d, t_hit, lp, beta, key, dim, use_eq,
+                                         cfg[CFG_UNIFORM_CHANNEL] != 0)
+                if max3(wn) > 0.0:
+                    s, dim = _medium_nee(ps, i, md, lt, cfg, madd(o, d, tn), d, beta, key, dim, sh, s,
+                                         light, lp, wn)
+                did_nee = True
+            t, scattered, w, le, dim = sample_distance(md, stack, o, d, t_hit, beta, key, dim,
+                                                       cfg[CFG_UNIFORM_CHANNEL] != 0)
+            if max3(le) > 0.0:
+                L[pid, 0] += beta[0] * le[0]
+                L[pid, 1] += beta[1] * le[1]
+                L[pid, 2] += beta[2] * le[2]
+            beta = mul(beta, w)
+            if scattered:
+                x = madd(o, d, t)
+                if depth > max_bounces or max3(beta) <= 0.0:
+                    ps.alive[i] = 0
+                    continue
+                if not did_nee and sampling != SAMPLING_BSDF and cdf.shape[0] > 1:
+                    light = pick_light(cdf, uniform(key, dim))
+                    lp = light_point(lt, light, uniform(key, dim + 1), uniform(key, dim + 2))
+                    dim += 3
+                    s, dim = _medium_nee(ps, i, md, lt, cfg, x, d, beta, key, dim, sh, s, light, lp,
+                                         (1.0, 1.0, 1.0))
+                wi, ph_pdf = sample_phase(md, stack, x, d, uniform(key, dim), uniform(key, dim + 1),
+                                          uniform(key, dim + 2))
+                dim += 3
+                _put(ps.beta, i, beta)
+                ps.depth[i] = depth + 1
+                ps.mis_pdf[i] = ph_pdf
+                _put(ps.mis_o, i, x)
+                _put(ps.o, i, x)
+                _put(ps.d, i, wi)
+                ps.tmax[i] = RAY_FAR
+                alive, dim = _russian_roulette(ps, i, key, dim, cfg[CFG_RR_DEPTH])
+                ps.alive[i] = 1 if alive else 0
+                ps.dim[i] = dim
+                continue
+            if max3(beta) <= 0.0:
+                ps.alive[i] = 0
+                continue
+
+        # --- escaped: environment and sun discs ------------------------------------------
+        if p < 0:
+            le, pdf_light = escaped_radiance(lt, env_light, sun_rows, d)
+            if max3(le) > 0.0:
+                w = _hit_weight(ps.mis_pdf[i], pdf_light, sampling)
+                L[pid, 0] += beta[0] * le[0] * w
+                L[pid, 1] += beta[1] * le[1] * w
+                L[pid, 2] += beta[2] * le[2] * w
+            ps.alive[i] = 0
+            continue
+
+        # --- surface hit ---------------------------------------------------------------
+        b1 = float(bu[i])
+        b2 = float(bv[i])
+        b0 = 1.0 - b1 - b2
+        v0 = _vec(geo.v0, p)
+        x = madd(madd(v0, _vec(geo.e1, p), b1), _vec(geo.e2, p), b2)
+        ng = _vec(geo.ng, p)
+        front = dot(d, ng) < 0.0
+        m = geo.material[p]
+
+        light = geo.light[p]
+        if light >= 0:
+            c = lt[4] if front else lt[5]
+            le = (float(c[light, 0]), float(c[light, 1]), float(c[light, 2]))
+            if max3(le) > 0.0:
+                w = 1.0
+                if ps.mis_pdf[i] > 0.0 or sampling == SAMPLING_NEE:
+                    pdf_light = triangle_light_pdf(lt, light, _vec(ps.mis_o, i), x, dot(d, ng))
+                    w = _hit_weight(ps.mis_pdf[i], pdf_light, sampling)
+                L[pid, 0] += beta[0] * le[0] * w
+                L[pid, 1] += beta[1] * le[1] * w
+                L[pid, 2] += beta[2] * le[2] * w
+
+        if not bsdf_has_lobes(mt, m, front):
+            # An invisible interface: cross it without scattering.
+            _cross_interface(ps, i, geo, p, front, x, ng, d, beta)
+            ps.dim[i] = dim
+            continue
+        if depth > max_bounces:
+            ps.alive[i] = 0
+            continue
+
+        sn = _shading_normal(geo, p, b0, b1, b2, ng)
+        ts, tt = onb(sn)
+        wo = to_local(neg(d), ts, tt, sn)
+
+        # next-event estimation
+        if sampling != SAMPLING_BSDF and cdf.shape[0] > 1:
+            light = pick_light(cdf, uniform(key, dim))
+            lp = light_point(lt, light, uniform(key, dim + 1), uniform(key, dim + 2))
+            wi, dist, le, pdf, is_delta = connect_light(lt, light, lp, x, uniform(key, dim + 3),
+                                                        uniform(key, dim + 4))
+            dim += 5
+            p_light = pdf * pmf[light]
+            if p_light > 0.0 and max3(le) > 0.0:
+                wil = to_local(wi, ts, tt, sn)
+                f, pdf_bsdf = bsdf_eval(mt, m, front, wo, wil)
+                w = _light_sample_weight(lt, light, p_light, pdf_bsdf, is_delta, sampling)
+                c = scale(mul(mul(beta, f), le), abs(wil[2]) * w / p_light)
+                if max3(c) > 0.0:
+                    xo = offset_origin(x, ng, wi)
+                    if dist < RAY_FAR:
+                        dist = math.sqrt(dot(sub(lp, xo), sub(lp, xo))) * 0.9999
+                    tr, dim = _shadow_transmittance(md, cfg, stack, xo, wi, dist, key, dim)
+                    _emit_shadow(sh, s, xo, wi, dist, mul(c, tr), pid, key, dim, stack)
+                    s += 1
+                    dim += 64
+
+        # BSDF sampling
+        wil, w, pdf, event = bsdf_sample(mt, m, front, wo, uniform(key, dim), uniform(key, dim + 1),
+                                         uniform(key, dim + 2), uniform(key, dim + 3))
+        dim += 4
+        if event == 0 or max3(w) <= 0.0:
+            ps.alive[i] = 0
+            continue
+        beta = mul(beta, w)
+        if event == 3:
+            _cross_interface(ps, i, geo, p, front, x, ng, d, beta)
+            ps.dim[i] = dim
+            continue
+        wi = normalize(to_world(wil, ts, tt, sn))
+        # Crossing to the other side of the geometric surface enters or leaves its medium.
+        if (dot(wi, ng) > 0.0) != (not front):
+            _update_stack(ps, i, geo, p, front)
+        _put(ps.beta, i, beta)
+        ps.depth[i] = depth + 1
+        ps.mis_pdf[i] = pdf if event == 1 else 0.0
+        _put(ps.mis_o, i, x)
+        _put(ps.o, i, offset_origin(x, ng, wi))
+        _put(ps.d, i, wi)
+        ps.tmax[i] = RAY_FAR
+        alive, dim = _russian_roulette(ps, i, key, dim, cfg[CFG_RR_DEPTH])
+        ps.alive[i] = 1 if alive else 0
+        ps.dim[i] = dim
+    return s
+
+
+@njit(cache=True)
+def _shading_normal(geo, p, b0, b1, b2, ng):
+    sn0 = _vec(geo.sn[p], 0)
+    sn1 = _vec(geo.sn[p], 1)
+    sn2 = _vec(geo.sn[p], 2)
+    n = normalize(add(add(scale(sn0, b0), scale(sn1, b1)), scale(sn2, b2)))
+    # Shading normals live on the front side of the geometric normal.
+    if dot(n, ng) < 0.0:
+        n = neg(n)
+    return n
+
+
+@njit(cache=True)
+def _update_stack(ps, i, geo, p, front):
+    med = geo.medium[p]
+    if med >= 0:
+        if front:
+            stack_push(ps.stack[i], med)
+        else:
+            stack_remove(ps.stack[i], med)
+
+
+@njit(cache=True)
+def _cross_interface(ps, i, geo, p, front, x, ng, d, beta):
+    """Continue straight through the surface at x, entering or leaving its medium."""
+    _update_stack(ps, i, geo, p, front)
+    ps.crossings[i] += 1
+    if ps.crossings[i] > MAX_CROSSINGS:
+        ps.alive[i] = 0
+        return
+    _put(ps.beta, i, beta)
+    _put(ps.o, i, offset_origin(x, ng, d))
+    _put(ps.d, i, d)
+    ps.tmax[i] = RAY_FAR
+    ps.alive[i] = 1
+
+
+@njit(cache=True)
+def resolve_shadows(count, sh, occluded, L):
+    """Add the contributions of shadow rays that reached their light."""
+    for s in range(count):
+        if not occluded[s]:
+            pid = sh.pid[s]
+            L[pid, 0] += sh.contrib[s, 0]
+            L[pid, 1] += sh.contrib[s, 1]
+            L[pid, 2] += sh.contrib[s, 2]
+
+
+@njit(cache=True)
+def walk_shadows(count, sh, prim, thit, remaining, geo, mt, md, cfg, L):
+    """One step of shadow rays that may pass interfaces. thit is the hit distance where
+    prim >= 0; remaining is each ray's length left to its light. A ray that reaches its end
+    adds its contribution; one that hits an opaque surface dies; one that hits an interface
+    or a transparent lobe continues past it with its medium stack updated."""
+    has_media = cfg[CFG_HAS_MEDIA] != 0
+    for s in range(count):
+        o = _vec(sh.o, s)
+        d = _vec(sh.d, s)
+        p = prim[s]
+        t_end = float(thit[s]) if p >= 0 else float(remaining[s])
+        stack = sh.stack[s]
+        c = _vec(sh.contrib, s)
+        if has_media and not stack_is_empty(stack):
+            tr, dim = transmittance(md, stack, o, d, 0.0, t_end, sh.key[s], sh.dim[s],
+                                    cfg[CFG_DELTA_TR] != 0)
+            sh.dim[s] = dim
+            c = mul(c, tr)
+        if max3(c) <= 0.0:
+            sh.alive[s] = 0
+            continue
+        if p < 0:
+            pid = sh.pid[s]
+            L[pid, 0] += c[0]
+            L[pid, 1] += c[1]
+            L[pid, 2] += c[2]
+            sh.alive[s] = 0
+            continue
+        ng = _vec(geo.ng, p)
+        front = dot(d, ng) < 0.0
+        tint = _transparency(mt, geo.material[p], front)
+        if max3(tint) <= 0.0:
+            sh.alive[s] = 0
+            continue
+        med = geo.medium[p]
+        if med >= 0:
+            if front:
+                stack_push(stack, med)
+            else:
+                stack_remove(stack, med)
+        x = madd(o, d, t_end)
+        xo = offset_origin(x, ng, d)
+        remaining[s] = max(0.0, remaining[s] - dot(sub(xo, o), d))
+        _put(sh.o, s, xo)
+        _put(sh.contrib, s, mul(c, tint))
+        sh.alive[s] = 1
+
+
+@njit(cache=True)
+def _transparency(mt, m, front):
+    """How much light passes straight through material m from this side: 1 for a surface
+    with no lobes (an interface), the transparent lobes' weight*color otherwise."""
+    if not bsdf_has_lobes(mt, m, front):
+        return (1.0, 1.0, 1.0)
+    start, count, kind, weight, color, sides = mt[0], mt[1], mt[2], mt[3], mt[4], mt[7]
+    side = 1 if front else 2
+    r, g, b = 0.0, 0.0, 0.0
+    for j in range(start[m], start[m] + count[m]):
+        if (sides[j] & side) != 0 and kind[j] == 5:
+            r += weight[j, 0] * color[j, 0]
+            g += weight[j, 1] * color[j, 1]
+            b += weight[j, 2] * color[j, 2]
+    return (min(r, 1.0), min(g, 1.0), min(b, 1.0))
+
+
+@njit(cache=True)
+def compact_paths(n, ps):
+    """Move live paths to rows 0..k-1 (stable) and return k."""
+    k = 0
+    for i in range(n):
+        if ps.alive[i] == 0:
+            continue
+        if k != i:
+            for c in range(3):
+                ps.o[k, c] = ps.o[i, c]
+                ps.d[k, c] = ps.d[i, c]
+                ps.beta[k, c] = ps.beta[i, c]
+                ps.mis_o[k, c] = ps.mis_o[i, c]
+            ps.tmax[k] = ps.tmax[i]
+            ps.pid[k] = ps.pid[i]
+            ps.key[k] = ps.key[i]
+            ps.dim[k] = ps.dim[i]
+            ps.depth[k] = ps.depth[i]
+            ps.crossings[k] = ps.crossings[i]
+            ps.mis_pdf[k] = ps.mis_pdf[i]
+            for j in range(ps.stack.shape[1]):
+                ps.stack[k, j] = ps.stack[i, j]
+            ps.alive[k] = 1
+        k += 1
+    return k
+
+
+@njit(cache=True)
+def compact_shadows(n, sh, remaining):
+    """Keep live shadow rays (rows 0..k-1); `remaining` (S,) float32 holds each ray's length
+    left to its light and moves along."""
+    k = 0
+    for i in range(n):
+        if sh.alive[i] == 0:
+            continue
+        if k != i:
+            for c in range(3):
+                sh.o[k, c] = sh.o[i, c]
+                sh.d[k, c] = sh.d[i, c]
+                sh.contrib[k, c] = sh.contrib[i, c]
+            sh.pid[k] = sh.pid[i]
+            sh.key[k] = sh.key[i]
+            sh.dim[k] = sh.dim[i]
+            for j in range(sh.stack.shape[1]):
+                sh.stack[k, j] = sh.stack[i, j]
+            sh.alive[k] = 1
+        remaining[k] = remaining[i]
+        k += 1
+    return k
+
+
+@njit(cache=True)
+def splat(n, L, pixel_of_pid, film_sum, film_sq, film_n):
+    """Add paths 0..n-1 of the batch to the film (per-pixel sum, sum of squares, count)."""
+    for i in range(n):
+        px = pixel_of_pid[i]
+        for c in range(3):
+            v = L[i, c]
+            if not np.isfinite(v):
+                v = 0.0
+            film_sum[px, c] += v
+            film_sq[px, c] += v * v
+        film_n[px] += 1

@@ -1,0 +1,123 @@
+"""The batch driver: the only Python in the bounce loop is one Embree call per bounce for
+the paths and one (or an interface walk) for their shadow rays; kernels do the rest."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..compile import MAX_STACK, CompiledScene
+from ..film import Film
+from ..geometry import Intersector
+from ..scene import IntegratorSettings
+from . import kernels as K
+from .state import allocate_paths, allocate_shadows
+
+SAMPLING_CODES = {"mis": K.SAMPLING_MIS, "nee": K.SAMPLING_NEE, "bsdf": K.SAMPLING_BSDF}
+
+
+def make_config(cs: CompiledScene, settings: IntegratorSettings) -> np.ndarray:
+    cfg = np.zeros(K.CFG_SIZE, np.int64)
+    cfg[K.CFG_MAX_BOUNCES] = settings.max_bounces
+    cfg[K.CFG_RR_DEPTH] = settings.rr_depth
+    cfg[K.CFG_SAMPLING] = SAMPLING_CODES[settings.sampling]
+    cfg[K.CFG_DELTA_TR] = settings.transmittance == "delta"
+    cfg[K.CFG_UNIFORM_CHANNEL] = settings.distance_sampling == "uniform"
+    cfg[K.CFG_EQUIANGULAR] = settings.equiangular
+    cfg[K.CFG_HAS_MEDIA] = cs.has_media
+    cfg[K.CFG_WALK_SHADOWS] = cs.needs_shadow_walk
+    return cfg
+
+
+def camera_medium_stack(cs: CompiledScene, isect: Intersector) -> np.ndarray:
+    """Media the camera sits in: the world medium, plus each medium mesh whose surface the
+    camera is behind. Found from the geometry along one ray: a mesh whose first crossing is
+    an exit (the ray leaves through a back face) encloses the camera."""
+    stack = np.full(MAX_STACK, -1, np.int32)
+    depth = 0
+    if cs.world_medium >= 0:
+        stack[0] = cs.world_medium
+        depth = 1
+    geo = cs.geometry
+    if not (geo.medium >= 0).any():
+        return stack
+    origin = cs.camera.to_world[:3, 3].astype(np.float64)
+    direction = np.array([0.5773, 0.5774, 0.5775])  # not aligned with any axis-aligned wall
+    direction /= np.linalg.norm(direction)
+    seen: set[int] = set()
+    # Walk every crossing along the ray (one ray: a handful of Python steps, not per pixel).
+    o = origin.copy()
+    for _ in range(10000):
+        t = np.array([1e30], np.float32)
+        prim, _, _ = isect.intersect(o[None].astype(np.float32), direction[None].astype(np.float32), t)
+        p = int(prim[0])
+        if p < 0:
+            break
+        mesh_medium = int(geo.medium[p])
+        if mesh_medium >= 0 and mesh_medium not in seen:
+            seen.add(mesh_medium)
+            exiting = float(np.dot(direction, geo.ng[p])) > 0.0
+            if exiting and depth < MAX_STACK:
+                stack[depth] = mesh_medium
+                depth += 1
+        o = o + direction * (float(t[0]) + 1e-4 * (1.0 + np.abs(o).max()))
+    return stack
+
+
+class Tracer:
+    """Traces sample ranges of one compiled scene into films, batch by batch."""
+
+    def __init__(self, cs: CompiledScene, settings: IntegratorSettings):
+        self.cs = cs
+        self.settings = settings
+        self.isect = Intersector(cs.vertices, cs.indices)
+        self.batch = int(settings.batch_size)
+        self.ps = allocate_paths(self.batch)
+        self.sh = allocate_shadows(self.batch)
+        self.L = np.zeros((self.batch, 3), np.float64)
+        self.pixel_of_pid = np.zeros(self.batch, np.int32)
+        self.remaining = np.zeros(2 * self.batch, np.float32)
+        self.cfg = make_config(cs, settings)
+        lt = cs.lights
+        self.lt = (lt.kind, lt.pos, lt.vec_a, lt.vec_b, lt.color, lt.color_b, lt.param, lt.pmf, lt.cdf)
+        self.init_stack = camera_medium_stack(cs, self.isect)
+        self.stats = {"rays": 0, "shadow_rays": 0, "embree_s": 0.0}
+
+    def trace(self, film: Film, sample_base: int, spp: int, seed: int) -> None:
+        """Add samples sample_base .. sample_base + spp - 1 of every pixel to film."""
+        cs = self.cs
+        total = cs.width * cs.height * spp
+        for first in range(0, total, self.batch):
+            n = min(self.batch, total - first)
+            self._trace_batch(film, first, n, sample_base, seed)
+
+    def _trace_batch(self, film: Film, first: int, n: int, sample_base: int, seed: int) -> None:
+        cs, ps, sh = self.cs, self.ps, self.sh
+        self.L[:n] = 0.0
+        K.start_paths(ps, self.pixel_of_pid, cs.camera, cs.width, cs.height, seed, first, n, sample_base,
+                      self.init_stack)
+        live = n
+        while live > 0:
+            prim, bu, bv = self.isect.intersect(ps.o[:live], ps.d[:live], ps.tmax[:live])
+            self.stats["rays"] += live
+            count = K.shade(live, ps, prim, bu, bv, cs.geometry, cs.materials, self.lt, cs.lights.env_light,
+                            cs.lights.sun_rows, cs.media, self.cfg, self.L, sh)
+            if count:
+                self._shadows(count)
+            live = K.compact_paths(live, ps)
+        K.splat(n, self.L, self.pixel_of_pid, film.sum, film.sq, film.n)
+
+    def _shadows(self, count: int) -> None:
+        sh = self.sh
+        self.stats["shadow_rays"] += count
+        if not self.cs.needs_shadow_walk:
+            occluded = self.isect.occluded(sh.o[:count], sh.d[:count], sh.tmax[:count])
+            K.resolve_shadows(count, sh, occluded, self.L)
+            return
+        remaining = self.remaining
+        remaining[:count] = sh.tmax[:count]
+        while count > 0:
+            thit = remaining[:count].copy()
+            prim, _, _ = self.isect.intersect(sh.o[:count], sh.d[:count], thit)
+            K.walk_shadows(count, sh, prim, thit, remaining, self.cs.geometry, self.cs.materials,
+                           self.cs.media, self.cfg, self.L)
+            count = K.compact_shadows(count, sh, remaining)

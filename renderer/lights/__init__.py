@@ -1,0 +1,1 @@
+"""Lights: emitting triangles, point, spot and sun lights and a constant environment."""

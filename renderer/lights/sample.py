@@ -1,0 +1,161 @@
+"""Light sampling kernels over the LightTable (see renderer.lights.table).
+
+`lt` is the tuple (kind, pos, vec_a, vec_b, color, color_b, param, pmf, cdf). Light
+sampling is split in two so that a medium can place its next-event vertex toward the
+chosen point (equiangular sampling) before the connection is made:
+  pick_light     -> a row, by power
+  light_point    -> a point on that light (area lights, point and spot lights)
+  connect_light  -> direction, distance, radiance and solid-angle pdf from a shading point
+"""
+
+import math
+
+from numba import njit
+
+from ..kernels.vecmath import INV_4PI, cross, dot, length, normalize, onb, scale, sub, to_world
+from .table import POINT, SPOT, SUN, TRIANGLE
+
+
+@njit(cache=True)
+def pick_light(cdf, u):
+    """Row whose cdf interval holds u (binary search); -1 when there are no lights."""
+    n = cdf.shape[0] - 1
+    if n <= 0:
+        return -1
+    lo, hi = 0, n
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        if cdf[mid] <= u:
+            lo = mid
+        else:
+            hi = mid
+    return lo
+
+
+@njit(cache=True)
+def light_has_point(lt, light):
+    k = lt[0][light]
+    return k == TRIANGLE or k == POINT or k == SPOT
+
+
+@njit(cache=True)
+def light_point(lt, light, u1, u2):
+    """A point on the light, uniform by area for triangles; the position of point and spot
+    lights; the origin for sun and environment (which have no point)."""
+    kind, pos, vec_a, vec_b = lt[0], lt[1], lt[2], lt[3]
+    p = (float(pos[light, 0]), float(pos[light, 1]), float(pos[light, 2]))
+    if kind[light] != TRIANGLE:
+        return p
+    su = math.sqrt(u1)
+    b1 = 1.0 - su
+    b2 = u2 * su
+    return (p[0] + b1 * vec_a[light, 0] + b2 * vec_b[light, 0],
+            p[1] + b1 * vec_a[light, 1] + b2 * vec_b[light, 1],
+            p[2] + b1 * vec_a[light, 2] + b2 * vec_b[light, 2])
+
+
+@njit(cache=True)
+def _smoothstep(x):
+    if x <= 0.0:
+        return 0.0
+    if x >= 1.0:
+        return 1.0
+    return x * x * (3.0 - 2.0 * x)
+
+
+@njit(cache=True)
+def spot_attenuation(axis, cos_outer, blend_width, wi_from_light):
+    c = dot(axis, wi_from_light)
+    if c <= cos_outer:
+        return 0.0
+    if blend_width <= 0.0:
+        return 1.0
+    return _smoothstep((c - cos_outer) / blend_width)
+
+
+@njit(cache=True)
+def connect_light(lt, light, lp, x, u1, u2):
+    """Connect shading point x to light `light` (at point lp for lights that have one).
+
+    Returns (wi unit toward the light, dist (inf-like 1e30 for distant lights), Le (3-tuple:
+    radiance, or intensity / dist^2 for delta lights), pdf (solid angle, without the light's
+    selection probability; 1 for delta lights), is_delta).
+    """
+    kind, vec_a, vec_b, color, color_b, param = lt[0], lt[2], lt[3], lt[4], lt[5], lt[6]
+    k = kind[light]
+    c = (float(color[light, 0]), float(color[light, 1]), float(color[light, 2]))
+    if k == TRIANGLE or k == POINT or k == SPOT:
+        to = sub(lp, x)
+        dist = length(to)
+        if dist <= 0.0:
+            return (0.0, 0.0, 1.0), 0.0, (0.0, 0.0, 0.0), 0.0, False
+        wi = scale(to, 1.0 / dist)
+        if k == TRIANGLE:
+            e1 = (float(vec_a[light, 0]), float(vec_a[light, 1]), float(vec_a[light, 2]))
+            e2 = (float(vec_b[light, 0]), float(vec_b[light, 1]), float(vec_b[light, 2]))
+            n = normalize(cross(e1, e2))
+            cos_l = -dot(wi, n)
+            area = float(param[light, 0])
+            if abs(cos_l) < 1e-8 or area <= 0.0:
+                return wi, dist, (0.0, 0.0, 0.0), 0.0, False
+            if cos_l < 0.0:
+                c = (float(color_b[light, 0]), float(color_b[light, 1]), float(color_b[light, 2]))
+            return wi, dist, c, dist * dist / (area * abs(cos_l)), False
+        inv_d2 = 1.0 / (dist * dist)
+        if k == SPOT:
+            axis = (float(vec_a[light, 0]), float(vec_a[light, 1]), float(vec_a[light, 2]))
+            inv_d2 *= spot_attenuation(axis, float(param[light, 0]), float(param[light, 1]),
+                                       (-wi[0], -wi[1], -wi[2]))
+        return wi, dist, scale(c, inv_d2), 1.0, True
+    if k == SUN:
+        axis = (float(vec_a[light, 0]), float(vec_a[light, 1]), float(vec_a[light, 2]))
+        cos_half = float(param[light, 0])
+        if cos_half >= 1.0:
+            return axis, 1e30, c, 1.0, True
+        # uniform direction in the sun's cone
+        cos_t = 1.0 - u1 * (1.0 - cos_half)
+        sin_t = math.sqrt(max(0.0, 1.0 - cos_t * cos_t))
+        phi = 2.0 * math.pi * u2
+        s, t = onb(axis)
+        wi = to_world((sin_t * math.cos(phi), sin_t * math.sin(phi), cos_t), s, t, axis)
+        return wi, 1e30, c, 1.0 / float(param[light, 1]), False
+    # ENVIRONMENT: uniform sphere (a constant environment has nothing better)
+    z = 1.0 - 2.0 * u1
+    r = math.sqrt(max(0.0, 1.0 - z * z))
+    phi = 2.0 * math.pi * u2
+    return (r * math.cos(phi), r * math.sin(phi), z), 1e30, c, INV_4PI, False
+
+
+@njit(cache=True)
+def escaped_radiance(lt, env_light, sun_rows, d):
+    """Radiance arriving along direction d from infinity (environment and sun discs), and
+    the light-sampling pdf of that direction including selection probabilities (for MIS)."""
+    pmf, color, vec_a, param = lt[7], lt[4], lt[2], lt[6]
+    r, g, b, pdf = 0.0, 0.0, 0.0, 0.0
+    if env_light >= 0:
+        r += color[env_light, 0]
+        g += color[env_light, 1]
+        b += color[env_light, 2]
+        pdf += pmf[env_light] * INV_4PI
+    for j in range(sun_rows.shape[0]):
+        s = sun_rows[j]
+        axis = (float(vec_a[s, 0]), float(vec_a[s, 1]), float(vec_a[s, 2]))
+        if dot(axis, d) >= param[s, 0]:
+            r += color[s, 0]
+            g += color[s, 1]
+            b += color[s, 2]
+            pdf += pmf[s] / param[s, 1]
+    return (r, g, b), pdf
+
+
+@njit(cache=True)
+def triangle_light_pdf(lt, light, x, p, cos_l):
+    """Solid-angle pdf, with selection, of light-sampling point p on triangle light `light`
+    from x, where cos_l is the cosine at the light."""
+    area = lt[6][light, 0]
+    if area <= 0.0 or abs(cos_l) < 1e-8:
+        return 0.0
+    to = sub(p, x)
+    return lt[7][light] * dot(to, to) / (area * abs(cos_l))
+
+
