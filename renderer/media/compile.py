@@ -1,0 +1,263 @@
+"""Flatten a list of Medium descriptions into the arrays the media kernels read.
+
+MediaTable is a NamedTuple of contiguous numpy arrays; numba passes it to @njit kernels as
+one argument (a tuple of array views, fine with cache=True). M = number of media; a medium
+id is its index in the list. Every array has a leading M axis, except the flat pools
+`grid_data` and `maj_data` that the per-medium offsets index.
+
+    kind          (M,)      int32    MEDIUM_HOMOGENEOUS (0) or MEDIUM_GRID (1)
+    sigma_a       (M, 3)    float32  absorption per world unit, already times `scale`
+    sigma_s       (M, 3)    float32  scattering per world unit, already times `scale`
+    g             (M,)      float32  Henyey-Greenstein asymmetry
+    emission      (M, 3)    float32  emission per unit length (see renderer.media.emission)
+    has_emission  (M,)      int32    1 if the medium can emit anywhere (else emission is skipped)
+    blackbody     (M,)      float32  blackbody intensity (used only with a temperature grid)
+    to_unit       (M, 3, 4) float32  world -> grid unit cube affine [A | b]: u = A x + b
+                                     (identity for homogeneous media)
+    grid_offset   (M, 3)    int64    start of the density / flame / temperature grid in
+                                     grid_data, -1 when absent (GRID_DENSITY, GRID_FLAME,
+                                     GRID_TEMPERATURE index the second axis)
+    grid_dims     (M, 3, 3) int32    (nx, ny, nz) of those grids; voxel (i, j, k) is
+                                     grid_data[offset + (k * ny + j) * nx + i]
+    grid_data     (N,)      float32  every grid, x fastest
+    maj_offset    (M,)      int64    start of the medium's coarse majorant grid in maj_data
+                                     (-1 for homogeneous media)
+    maj_dims      (M, 3)    int32    majorant cells (cx, cy, cz) along unit-cube x, y, z
+    maj_data      (K, 2)    float32  per cell: [max density that trilinear interpolation can
+                                     reach inside the cell, 1.0 if the cell can emit else 0.0]
+    emission_rate (M,)      float32  tentative-collision rate (per world unit) guaranteed in
+                                     emitting cells of a grid, so that emission where the
+                                     density is ~0 is still estimated (see tracking.py)
+
+A homogeneous medium has density 1 everywhere: the medium stack says where it applies.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+
+from renderer.errors import SceneError
+from renderer.scene import Medium
+
+MEDIUM_HOMOGENEOUS = 0
+MEDIUM_GRID = 1
+
+GRID_DENSITY = 0
+GRID_FLAME = 1
+GRID_TEMPERATURE = 2
+GRID_NAMES = ("density", "flame", "temperature")  # in the order of the indices above
+
+# Majorant cells aim at MAJ_VOXELS voxels per axis, capped at MAJ_MAX_CELLS per axis: small
+# cells bound sparse data tightly, and a 64^3 cap keeps the DDA walk short.
+MAJ_VOXELS = 4
+MAJ_MAX_CELLS = 64
+# Tentative collisions per majorant cell crossed inside emitting cells (see emission_rate).
+EMISSION_COLLISIONS_PER_CELL = 2.0
+
+
+class MediaTable(NamedTuple):
+    kind: np.ndarray
+    sigma_a: np.ndarray
+    sigma_s: np.ndarray
+    g: np.ndarray
+    emission: np.ndarray
+    has_emission: np.ndarray
+    blackbody: np.ndarray
+    to_unit: np.ndarray
+    grid_offset: np.ndarray
+    grid_dims: np.ndarray
+    grid_data: np.ndarray
+    maj_offset: np.ndarray
+    maj_dims: np.ndarray
+    maj_data: np.ndarray
+    emission_rate: np.ndarray
+
+
+def compile_media(media: list[Medium], use_majorant_grid: bool = True) -> MediaTable:
+    """Validate `media` and flatten them into a MediaTable (an empty list gives M = 0).
+
+    With use_majorant_grid False every grid medium gets a single majorant cell holding its
+    global maximum density (the paper's single bound), which is correct but slower.
+    """
+    m = len(media)
+    kind = np.zeros(m, np.int32)
+    sigma_a = np.zeros((m, 3), np.float32)
+    sigma_s = np.zeros((m, 3), np.float32)
+    g = np.zeros(m, np.float32)
+    emission = np.zeros((m, 3), np.float32)
+    has_emission = np.zeros(m, np.int32)
+    blackbody = np.zeros(m, np.float32)
+    to_unit = np.zeros((m, 3, 4), np.float32)
+    grid_offset = np.full((m, 3), -1, np.int64)
+    grid_dims = np.zeros((m, 3, 3), np.int32)
+    maj_offset = np.full(m, -1, np.int64)
+    maj_dims = np.zeros((m, 3), np.int32)
+    emission_rate = np.zeros(m, np.float32)
+    grids: list[np.ndarray] = []
+    majs: list[np.ndarray] = []
+    grid_size = 0
+    maj_size = 0
+
+    for i, med in enumerate(media):
+        path = f"media[{i}]"
+        _check_medium(med, path)
+        kind[i] = MEDIUM_GRID if med.type == "grid" else MEDIUM_HOMOGENEOUS
+        sigma_a[i] = np.asarray(med.sigma_a, np.float64) * med.scale
+        sigma_s[i] = np.asarray(med.sigma_s, np.float64) * med.scale
+        g[i] = med.g
+        emission[i] = med.emission
+        blackbody[i] = med.blackbody_intensity
+        emits_constant = any(e > 0.0 for e in med.emission)
+        emits_blackbody = med.temperature is not None and med.blackbody_intensity > 0.0
+        has_emission[i] = int(emits_constant or (kind[i] == MEDIUM_GRID and emits_blackbody))
+        if kind[i] == MEDIUM_HOMOGENEOUS:
+            to_unit[i] = np.eye(3, 4)
+            continue
+
+        to_unit[i], axis_lengths = _world_to_unit(med, path)
+        for which, name in enumerate(GRID_NAMES):
+            arr = getattr(med, name)
+            if arr is None:
+                continue
+            arr = np.ascontiguousarray(arr, dtype=np.float32)
+            grid_offset[i, which] = grid_size
+            grid_dims[i, which] = (arr.shape[2], arr.shape[1], arr.shape[0])
+            grids.append(arr.ravel())
+            grid_size += arr.size
+
+        cells = _majorant_cells(med.density.shape, use_majorant_grid)
+        maj = np.zeros((cells[2], cells[1], cells[0], 2), np.float32)
+        maj[..., 0] = _cell_max(np.ascontiguousarray(med.density, np.float32), cells)
+        if has_emission[i]:
+            maj[..., 1] = _emitting_cells(med, cells, emits_constant, emits_blackbody)
+        maj_offset[i] = maj_size
+        maj_dims[i] = cells
+        majs.append(maj.reshape(-1, 2))
+        maj_size += maj.shape[0] * maj.shape[1] * maj.shape[2]
+        emission_rate[i] = EMISSION_COLLISIONS_PER_CELL * max(c / n for c, n in zip(cells, axis_lengths))
+
+    grid_data = np.concatenate(grids) if grids else np.zeros(1, np.float32)
+    maj_data = np.concatenate(majs) if majs else np.zeros((1, 2), np.float32)
+    return MediaTable(
+        kind, sigma_a, sigma_s, g, emission, has_emission, blackbody, to_unit, grid_offset, grid_dims,
+        np.ascontiguousarray(grid_data, np.float32), maj_offset, maj_dims,
+        np.ascontiguousarray(maj_data, np.float32), emission_rate,
+    )  # fmt: skip
+
+
+# ------------------------------------------------------------------------------ validation
+
+
+def _check_medium(med: Medium, path: str) -> None:
+    """Last line of defence: the scene loader validates too, but kernels must never see these."""
+    if med.type not in ("homogeneous", "grid"):
+        raise SceneError(f"{path}.type", f"must be 'homogeneous' or 'grid', got {med.type!r}")
+    for name in ("sigma_a", "sigma_s", "emission"):
+        value = np.asarray(getattr(med, name), np.float64)
+        if value.shape != (3,) or not np.all(np.isfinite(value)) or np.any(value < 0.0):
+            raise SceneError(f"{path}.{name}", f"must be three finite values >= 0, got {getattr(med, name)}")
+    for name in ("scale", "blackbody_intensity"):
+        value = float(getattr(med, name))
+        if not math.isfinite(value) or value < 0.0:
+            raise SceneError(f"{path}.{name}", f"must be finite and >= 0, got {value}")
+    if not (math.isfinite(med.g) and abs(med.g) < 1.0):
+        raise SceneError(f"{path}.g", f"must satisfy |g| < 1, got {med.g}")
+    if med.type == "homogeneous":
+        for name in ("density", "flame", "temperature"):
+            if getattr(med, name) is not None:
+                raise SceneError(f"{path}.{name}", "only grid media take grid arrays (type is 'homogeneous')")
+        return
+    if med.density is None:
+        raise SceneError(f"{path}.density", "required for grid media")
+    for name in ("density", "flame", "temperature"):
+        arr = getattr(med, name)
+        if arr is None:
+            continue
+        arr = np.asarray(arr)
+        if arr.ndim != 3 or arr.size == 0:
+            raise SceneError(f"{path}.{name}", f"must be a non-empty 3-D (nz, ny, nx) array, got {arr.shape}")
+        if not np.all(np.isfinite(arr)):
+            raise SceneError(f"{path}.{name}", "contains NaN or infinite values")
+        if np.any(arr < 0.0):
+            raise SceneError(f"{path}.{name}", f"must not be negative, got minimum {float(arr.min())}")
+
+
+def _world_to_unit(med: Medium, path: str) -> tuple[np.ndarray, tuple[float, float, float]]:
+    """D = (to_world * T(p0) * S(p1 - p0))^-1 as a 3x4 affine, and the world length of the
+    unit cube's three edges (for the emission collision rate)."""
+    w = np.asarray(med.to_world, np.float64)
+    if w.shape != (4, 4) or not np.all(np.isfinite(w)):
+        raise SceneError(f"{path}.to_world", "must be a finite 4x4 matrix")
+    if not np.allclose(w[3], (0.0, 0.0, 0.0, 1.0), rtol=0.0, atol=1e-9):
+        raise SceneError(f"{path}.to_world", f"last row must be (0, 0, 0, 1), got {tuple(w[3])}")
+    p0 = np.asarray(med.p0, np.float64)
+    extent = np.asarray(med.p1, np.float64) - p0
+    if not np.all(np.isfinite(extent)) or not np.all(np.isfinite(p0)):
+        raise SceneError(f"{path}.p1", "p0 and p1 must be finite")
+    for axis in range(3):
+        if extent[axis] == 0.0:
+            raise SceneError(f"{path}.p1", f"equals p0 on the {'xyz'[axis]} axis: the grid box is flat")
+    box = np.eye(4)
+    box[:3, :3] = np.diag(extent)
+    box[:3, 3] = p0
+    unit_to_world = w @ box
+    lin = unit_to_world[:3, :3]
+    # Singular relative to the matrix's own scale: a tiny but well-shaped box is fine.
+    if not np.all(np.isfinite(lin)) or np.linalg.cond(lin) > 1e12:
+        raise SceneError(f"{path}.to_world", "singular matrix (combined with p0..p1)")
+    inv = np.linalg.inv(unit_to_world)
+    lengths = tuple(float(np.linalg.norm(lin[:, a])) for a in range(3))
+    return inv[:3, :].astype(np.float32), lengths
+
+
+# ------------------------------------------------------------------------------ majorants
+
+
+def _majorant_cells(shape: tuple[int, int, int], use_majorant_grid: bool) -> tuple[int, int, int]:
+    if not use_majorant_grid:
+        return (1, 1, 1)
+    nz, ny, nx = shape
+    return tuple(max(1, min(MAJ_MAX_CELLS, -(-n // MAJ_VOXELS))) for n in (nx, ny, nz))
+
+
+def _voxel_range(c: int, cells: int, n: int) -> tuple[int, int]:
+    """Voxels (inclusive range) that trilinear interpolation can touch inside majorant cell c.
+
+    The cell spans unit coordinates [c/cells, (c+1)/cells]; a point u reads voxels
+    floor(u n - 1/2) and the next one. One extra voxel on each side keeps the bound valid
+    for points a rounding error outside the cell (the DDA's boundary crossings).
+    """
+    lo = math.floor(c * n / cells) - 1
+    hi = math.ceil((c + 1) * n / cells)
+    return max(0, lo), min(n - 1, hi)
+
+
+def _cell_max(grid: np.ndarray, cells: tuple[int, int, int]) -> np.ndarray:
+    """(cz, cy, cx) max of `grid` over each cell's voxel range: three separable 1-D max passes."""
+    out = grid
+    for axis, c in zip((2, 1, 0), cells):  # numpy axis 2 is x
+        n = out.shape[axis]
+        parts = []
+        for k in range(c):
+            lo, hi = _voxel_range(k, c, n)
+            parts.append(np.take(out, np.arange(lo, hi + 1), axis=axis).max(axis=axis, keepdims=True))
+        out = np.concatenate(parts, axis=axis)
+    return out
+
+
+def _emitting_cells(med: Medium, cells: tuple[int, int, int], constant: bool, blackbody: bool) -> np.ndarray:
+    """1.0 where the emission term can be non-zero inside the cell (within the unit box)."""
+    if constant and med.flame is None:
+        return np.ones((cells[2], cells[1], cells[0]), np.float32)
+    emits = np.zeros((cells[2], cells[1], cells[0]), np.float32)
+    if constant:
+        emits = np.maximum(emits, _cell_max(np.asarray(med.flame, np.float32), cells) > 0.0)
+    if blackbody:
+        if med.blackbody_intensity < 1.0:
+            # Cycles' intensity mix(1, T^4, b) is positive even at T = 0 when b < 1.
+            return np.ones_like(emits)
+        emits = np.maximum(emits, _cell_max(np.asarray(med.temperature, np.float32), cells) > 0.0)
+    return emits.astype(np.float32)

@@ -1,0 +1,58 @@
+"""Equiangular distance sampling toward a point light (Kulla & Fajardo 2012).
+
+For a ray o + t d (d unit) and a light at c, let delta = dot(c - o, d) be the parameter of
+the point of the ray nearest the light and D the light's distance to the ray line. The pdf
+
+    pdf(t) = D / ((theta_b - theta_a) (D^2 + (t - delta)^2))   on [0, tmax)
+
+with theta_a = atan2(-delta, D), theta_b = atan2(tmax - delta, D) cancels the 1/r^2 falloff
+of the light; it is sampled by t = delta + D tan(theta_a + u (theta_b - theta_a)).
+
+Robustness: a light on the ray line (D = 0) would make the pdf non-integrable, so D is
+floored at a tiny fraction of the light's distance (the same floor in sample and pdf keeps
+them consistent, so the estimator stays unbiased); tmax may be huge (theta_b -> pi/2); when
+the angle range is too small to invert accurately both fall back to uniform on [0, tmax).
+"""
+
+import math
+
+from numba import njit
+
+from renderer.kernels.vecmath import dot, length, madd, sub
+
+MIN_THETA = 1e-9
+D_FLOOR = 1e-7  # relative to |delta|
+D_MIN = 1e-12  # world units
+
+
+@njit(cache=True, inline="always")
+def _frame(o, d, light_p, tmax):
+    to_light = sub(light_p, o)
+    delta = dot(to_light, d)
+    big_d = length(madd(to_light, d, -delta))
+    big_d = max(big_d, D_FLOOR * abs(delta), D_MIN)
+    theta_a = math.atan2(-delta, big_d)
+    theta_b = math.atan2(tmax - delta, big_d)
+    return delta, big_d, theta_a, theta_b - theta_a
+
+
+@njit(cache=True)
+def equiangular_pdf(o, d, light_p, tmax, t):
+    delta, big_d, _, theta_d = _frame(o, d, light_p, tmax)
+    if theta_d < MIN_THETA:
+        return 1.0 / tmax
+    x = t - delta
+    return big_d / (theta_d * (big_d * big_d + x * x))
+
+
+@njit(cache=True)
+def equiangular_sample(o, d, light_p, tmax, u):
+    """(t, pdf) with t in [0, tmax)."""
+    delta, big_d, theta_a, theta_d = _frame(o, d, light_p, tmax)
+    if theta_d < MIN_THETA:
+        return u * tmax, 1.0 / tmax
+    x = big_d * math.tan(theta_a + u * theta_d)
+    # Clamp only rounding errors: tan(theta) lands in [-delta, tmax - delta] in exact maths.
+    t = min(max(delta + x, 0.0), tmax)
+    x = t - delta
+    return t, big_d / (theta_d * (big_d * big_d + x * x))

@@ -1,0 +1,80 @@
+"""Grid media: density (and flame, temperature) looked up in the grid's unit cube.
+
+World -> unit cube is the affine D = (to_world * T(p0) * S(p1 - p0))^-1 stored as a 3x4
+matrix. Voxel (i, j, k) of an (nx, ny, nz) grid sits at ((i + 0.5)/nx, (j + 0.5)/ny,
+(k + 0.5)/nz); values are trilinear between voxel centres and clamp to the edge voxels
+inside [0, 1]^3 (so a constant grid is exactly a homogeneous medium and a 1x1x1 grid a
+homogeneous box); outside the box every grid reads 0. Homogeneous media have density 1.
+"""
+
+from numba import njit
+
+from renderer.media.compile import GRID_DENSITY, MEDIUM_GRID
+
+
+@njit(cache=True, inline="always")
+def to_unit_point(mt, m, p):
+    a = mt.to_unit[m]
+    return (
+        a[0, 0] * p[0] + a[0, 1] * p[1] + a[0, 2] * p[2] + a[0, 3],
+        a[1, 0] * p[0] + a[1, 1] * p[1] + a[1, 2] * p[2] + a[1, 3],
+        a[2, 0] * p[0] + a[2, 1] * p[1] + a[2, 2] * p[2] + a[2, 3],
+    )
+
+
+@njit(cache=True, inline="always")
+def to_unit_vector(mt, m, v):
+    a = mt.to_unit[m]
+    return (
+        a[0, 0] * v[0] + a[0, 1] * v[1] + a[0, 2] * v[2],
+        a[1, 0] * v[0] + a[1, 1] * v[1] + a[1, 2] * v[2],
+        a[2, 0] * v[0] + a[2, 1] * v[1] + a[2, 2] * v[2],
+    )
+
+
+@njit(cache=True, inline="always")
+def _axis(x, n):
+    """Lower voxel index and weight of the upper one for unit coordinate x on n voxels."""
+    f = x * n - 0.5
+    if f <= 0.0:
+        return 0, 0.0
+    if f >= n - 1:
+        return n - 1, 0.0
+    i = int(f)
+    return i, f - i
+
+
+@njit(cache=True)
+def grid_lookup(mt, m, which, u):
+    """Trilinear value of grid `which` of medium m at unit-cube point u (0 outside)."""
+    if not (0.0 <= u[0] <= 1.0 and 0.0 <= u[1] <= 1.0 and 0.0 <= u[2] <= 1.0):
+        return 0.0
+    off = mt.grid_offset[m, which]
+    nx = mt.grid_dims[m, which, 0]
+    ny = mt.grid_dims[m, which, 1]
+    nz = mt.grid_dims[m, which, 2]
+    i, fx = _axis(u[0], nx)
+    j, fy = _axis(u[1], ny)
+    k, fz = _axis(u[2], nz)
+    # A clamped axis has weight 0 on its "+1" voxel; the step is 0 there so nothing past
+    # the edge is read.
+    di = 1 if i + 1 < nx else 0
+    dj = nx if j + 1 < ny else 0
+    dk = nx * ny if k + 1 < nz else 0
+    data = mt.grid_data
+    b = off + (k * ny + j) * nx + i
+    c00 = data[b] * (1.0 - fx) + data[b + di] * fx
+    c10 = data[b + dj] * (1.0 - fx) + data[b + dj + di] * fx
+    c01 = data[b + dk] * (1.0 - fx) + data[b + dk + di] * fx
+    c11 = data[b + dk + dj] * (1.0 - fx) + data[b + dk + dj + di] * fx
+    c0 = c00 * (1.0 - fy) + c10 * fy
+    c1 = c01 * (1.0 - fy) + c11 * fy
+    return c0 * (1.0 - fz) + c1 * fz
+
+
+@njit(cache=True)
+def medium_density(mt, m, p):
+    """Density of medium m at world point p: 1 for homogeneous media."""
+    if mt.kind[m] != MEDIUM_GRID:
+        return 1.0
+    return grid_lookup(mt, m, GRID_DENSITY, to_unit_point(mt, m, p))

@@ -1,0 +1,131 @@
+"""Closed forms for stacks of homogeneous media (Beer's law): no tracking loop ever.
+
+Coefficients of the stack's entries add (Cycles' rule), so a homogeneous stack is one
+homogeneous medium with sigma = sum of the entries' sigma.
+"""
+
+import math
+
+from numba import njit
+
+from renderer.media.spectral import pick_channel
+from renderer.media.stack import EMPTY, MAX_STACK
+
+
+@njit(cache=True)
+def stack_sigma(mt, stack):
+    """(sigma_a, sigma_s) summed over the stack; valid for stacks without grids."""
+    a0 = a1 = a2 = 0.0
+    s0 = s1 = s2 = 0.0
+    for i in range(MAX_STACK):
+        m = stack[i]
+        if m == EMPTY:
+            break
+        a0 += mt.sigma_a[m, 0]
+        a1 += mt.sigma_a[m, 1]
+        a2 += mt.sigma_a[m, 2]
+        s0 += mt.sigma_s[m, 0]
+        s1 += mt.sigma_s[m, 1]
+        s2 += mt.sigma_s[m, 2]
+    return (a0, a1, a2), (s0, s1, s2)
+
+
+@njit(cache=True)
+def stack_constant_emission(mt, stack):
+    """Emission summed over the stack's emitting entries (homogeneous entries only)."""
+    e0 = e1 = e2 = 0.0
+    for i in range(MAX_STACK):
+        m = stack[i]
+        if m == EMPTY:
+            break
+        if mt.has_emission[m] != 0:
+            e0 += mt.emission[m, 0]
+            e1 += mt.emission[m, 1]
+            e2 += mt.emission[m, 2]
+    return (e0, e1, e2)
+
+
+@njit(cache=True, inline="always")
+def optical_depth(sigma, t):
+    # Written out so that sigma = 0 over an infinite segment is 0, not 0 * inf = NaN.
+    return sigma * t if sigma > 0.0 else 0.0
+
+
+@njit(cache=True)
+def beer(sigma_t, t):
+    """Transmittance exp(-sigma_t t) per channel."""
+    return (
+        math.exp(-optical_depth(sigma_t[0], t)),
+        math.exp(-optical_depth(sigma_t[1], t)),
+        math.exp(-optical_depth(sigma_t[2], t)),
+    )
+
+
+@njit(cache=True, inline="always")
+def _transmitted_length(sigma, t):
+    # integral_0^t exp(-sigma s) ds = (1 - exp(-sigma t)) / sigma, written with expm1 so
+    # that it tends to t without cancellation as sigma t -> 0 (and is exactly t at 0).
+    if sigma > 0.0:
+        return -math.expm1(-sigma * t) / sigma
+    return t
+
+
+@njit(cache=True)
+def emission_integral(emission, sigma_t, t):
+    """integral_0^t exp(-sigma_t s) emission ds per channel (constant emission)."""
+    return (
+        emission[0] * _transmitted_length(sigma_t[0], t),
+        emission[1] * _transmitted_length(sigma_t[1], t),
+        emission[2] * _transmitted_length(sigma_t[2], t),
+    )
+
+
+@njit(cache=True)
+def sample_exponential(sigma, u):
+    """Free-flight distance with density sigma exp(-sigma t); inf when sigma is 0.
+    u < 1 (24-bit uniforms) keeps -log1p(-u) <= 16.7, so t <= 16.7 / sigma."""
+    if sigma > 0.0:
+        return -math.log1p(-u) / sigma
+    return math.inf
+
+
+@njit(cache=True)
+def sample_truncated_exponential(sigma, tmax, u):
+    """Distance on [0, tmax) with density sigma exp(-sigma t) / (1 - exp(-sigma tmax))."""
+    x = optical_depth(sigma, tmax)
+    if x > 0.0:
+        t = -math.log1p(u * math.expm1(-x)) / sigma
+        return min(t, tmax)
+    return u * tmax
+
+
+@njit(cache=True)
+def truncated_exponential_pdf(sigma, tmax, t):
+    x = optical_depth(sigma, tmax)
+    if x > 0.0:
+        return sigma * math.exp(-sigma * t) / -math.expm1(-x)
+    return 1.0 / tmax
+
+
+@njit(cache=True)
+def free_flight(sigma_a, sigma_s, tmax, p, u_channel, u_distance):
+    """Sample the next collision on [0, tmax) in a homogeneous medium by spectral MIS.
+
+    Channel c (probability p_c) proposes t ~ sigma_t,c exp(-sigma_t,c t). Returns
+    (t, scattered, weight):
+      scattered:     weight = T(t) sigma_s / sum_c p_c sigma_t,c T_c(t)
+      not scattered: t = tmax, weight = T(tmax) / sum_c p_c T_c(tmax)   (P(no collision))
+    Absorption stays in the weight (the albedo factor), so no path is terminated here.
+    Both denominators contain the picked channel's own term, which cannot underflow
+    (sigma_t,c t <= 16.7), so the weights are finite for any mix of coefficients.
+    """
+    st = (sigma_a[0] + sigma_s[0], sigma_a[1] + sigma_s[1], sigma_a[2] + sigma_s[2])
+    c = pick_channel(p, u_channel)
+    t = sample_exponential(st[c], u_distance)
+    if t < tmax:
+        tr = beer(st, t)
+        pdf = p[0] * st[0] * tr[0] + p[1] * st[1] * tr[1] + p[2] * st[2] * tr[2]
+        return t, True, (tr[0] * sigma_s[0] / pdf, tr[1] * sigma_s[1] / pdf, tr[2] * sigma_s[2] / pdf)
+    tr = beer(st, tmax)
+    prob = p[0] * tr[0] + p[1] * tr[1] + p[2] * tr[2]
+    return tmax, False, (tr[0] / prob, tr[1] / prob, tr[2] / prob)
