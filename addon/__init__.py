@@ -1,0 +1,41 @@
+"""Haze: a volumetric path tracer as a Blender render engine.
+
+Installed as an extension (the built zip) the renderer and its dependencies come from the
+bundled wheels. Enabled from a clone of the repository (this folder linked into Blender's
+add-ons folder, or imported with the repository root on sys.path) the renderer is taken
+from the checkout next to it.
+"""
+
+from . import bootstrap
+
+# Before anything can import numba: its cache must go to a user folder, not the add-on's.
+bootstrap.configure_numba_cache(__package__ or __name__)
+bootstrap.make_renderer_importable(__file__)
+
+# Used when enabled as a legacy add-on from a clone; extensions read blender_manifest.toml.
+bl_info = {
+    "name": "Haze",
+    "author": "Haze developers",
+    "version": (0, 1, 0),
+    "blender": (4, 2, 0),
+    "category": "Render",
+    "description": "Volumetric path tracer (numpy, numba, Embree)",
+}
+
+MODULE_NAMES = ("properties", "engine", "ui", "operators")
+
+
+def _modules():
+    import importlib
+
+    return [importlib.import_module(f".{name}", __name__) for name in MODULE_NAMES]
+
+
+def register() -> None:
+    for module in _modules():
+        module.register()
+
+
+def unregister() -> None:
+    for module in reversed(_modules()):
+        module.unregister()

@@ -1,0 +1,36 @@
+"""Copying Haze's images into Blender's render result.
+
+Haze images are (H, W, 3) linear RGB with row 0 at the top; Blender wants a flat float32
+RGBA array with row 0 at the bottom. The RGBA buffer is allocated once per render (alpha
+stays 1) and each push only copies the colour channels, so showing a pass costs one copy.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+class ResultBuffer:
+    """An RGBA float32 image in Blender's pixel order, reused for every push."""
+
+    def __init__(self, width: int, height: int) -> None:
+        self.width, self.height = width, height
+        self.rgba = np.zeros((height, width, 4), dtype=np.float32)
+        self.rgba[:, :, 3] = 1.0
+
+    def fill(self, image: np.ndarray) -> None:
+        """Take a Haze image (row 0 = top) and flip it to Blender's bottom-up order."""
+        if image.shape[:2] != (self.height, self.width):
+            raise ValueError(
+                f"the renderer returned a {image.shape[1]}x{image.shape[0]} image for a "
+                f"{self.width}x{self.height} render"
+            )
+        np.copyto(self.rgba[:, :, :3], image[::-1, :, :3], casting="unsafe")
+
+    def flat(self) -> np.ndarray:
+        return self.rgba.reshape(-1)
+
+
+def write_result(result, buffer: ResultBuffer) -> None:
+    """Store the buffer in the render result's Combined pass."""
+    result.layers[0].passes["Combined"].rect.foreach_set(buffer.flat())

@@ -1,0 +1,187 @@
+"""Blender materials and world shaders to Haze Materials and Media (Cycles' semantics).
+
+Rules that follow from how Cycles shades (see docs in addon/README-section.md):
+
+* Surface linked: the surface is opaque wherever no lobe exists. Cycles terminates a path on
+  a face side that has no BSDF (e.g. the back of a one-sided emitter), so Haze gets a black
+  diffuse lobe there; a material without lobes would otherwise be an invisible interface.
+* Surface unlinked but Volume linked: an invisible boundary enclosing the medium.
+* Neither linked (or no output node): black, as in Cycles.
+* No node tree: a diffuse surface of the material's viewport colour.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from renderer.scene import Lobe, Material, Medium
+
+from .messages import Messages, material_subject
+from .nodes import VOLUME_KINDS, ShaderGraph, Term, as_volume_terms, rgb
+
+DEFAULT_MATERIAL_NAME = "Haze Default Surface"
+LOBE_KINDS = {"diffuse", "dielectric", "conductor", "rough_conductor", "plastic", "transparent"}
+MAX_ANISOTROPY = 1.0 - 1e-3  # Cycles clamps Henyey-Greenstein g to this magnitude
+BLACK = (0.0, 0.0, 0.0)
+
+
+def default_material() -> Material:
+    """Cycles' surface for objects without a material: 0.8 grey diffuse."""
+    return Material(DEFAULT_MATERIAL_NAME, lobes=[Lobe("diffuse", color=(0.8, 0.8, 0.8))])
+
+
+def medium_name(owner_name: str) -> str:
+    return f"{owner_name} (volume)"
+
+
+def side_covered(lobes: list[Lobe], side: str) -> bool:
+    return any(lobe.sides in (side, "both") for lobe in lobes)
+
+
+def close_open_sides(lobes: list[Lobe]) -> list[Lobe]:
+    """Add black diffuse lobes on face sides no lobe covers, so those sides stay opaque."""
+    missing = [side for side in ("front", "back") if not side_covered(lobes, side)]
+    if len(missing) == 2:
+        return lobes + [Lobe("diffuse", color=BLACK, sides="both")]
+    return lobes + [Lobe("diffuse", color=BLACK, sides=side) for side in missing]
+
+
+def lobe_from_term(term: Term) -> Lobe:
+    return Lobe(kind=term.kind, weight=rgb(term.weight), color=rgb(term.color),
+                roughness=float(term.roughness), ior=float(term.ior), sides=term.sides)
+
+
+def emission_per_side(terms: list[Term]) -> tuple[np.ndarray, np.ndarray]:
+    front, back = np.zeros(3), np.zeros(3)
+    for term in terms:
+        if term.kind != "emission":
+            continue
+        if term.sides in ("front", "both"):
+            front += term.weight
+        if term.sides in ("back", "both"):
+            back += term.weight
+    return front, back
+
+
+def choose_emission(front: np.ndarray, back: np.ndarray, subject: str, messages: Messages):
+    """One emission value and its sides; Haze cannot emit different colours on each side."""
+    if np.allclose(front, back):
+        return rgb(front), "both"
+    if not np.any(back):
+        return rgb(front), "front"
+    if not np.any(front):
+        return rgb(back), "back"
+    messages.warn(subject, "emission differs between front and back faces; the front value is used on both")
+    return rgb(front), "both"
+
+
+def surface_material(name: str, terms: list[Term], messages: Messages) -> Material:
+    subject = material_subject(name)
+    if any(term.kind in VOLUME_KINDS for term in terms):
+        messages.warn(subject, "a volume shader connected to the Surface output is ignored (as in Cycles)")
+    lobes = [lobe_from_term(t) for t in terms if t.kind in LOBE_KINDS and np.any(t.weight != 0.0)]
+    emission, emission_sides = choose_emission(*emission_per_side(terms), subject, messages)
+    return Material(name, lobes=close_open_sides(lobes), emission=emission, emission_sides=emission_sides)
+
+
+def mean_anisotropy(scatter: list[Term], subject: str, messages: Messages) -> float:
+    """Henyey-Greenstein g of several scattering closures, weighted by their scattering."""
+    weights = np.array([float(np.mean(t.weight)) for t in scatter])
+    values = np.array([t.anisotropy for t in scatter])
+    if len(set(np.round(values, 6))) > 1:
+        messages.warn(subject, "volume closures with different Anisotropy are combined into one mean value")
+    g = float(np.sum(weights * values) / np.sum(weights)) if np.sum(weights) > 0 else float(values[0])
+    return float(np.clip(g, -MAX_ANISOTROPY, MAX_ANISOTROPY))
+
+
+def volume_medium(name: str, terms: list[Term], messages: Messages, subject: str) -> Medium | None:
+    """A homogeneous Medium named `name` from volume closure terms, or None if they add up to
+    nothing. `subject` names the Blender datablock in warnings."""
+    if any(term.kind in LOBE_KINDS or term.kind == "emission" for term in terms):
+        messages.warn(subject, "a surface shader connected to the Volume output is ignored (as in Cycles)")
+    scatter = [t for t in terms if t.kind == "scatter"]
+    sigma_s = sum((t.weight for t in scatter), np.zeros(3))
+    sigma_a = sum((t.weight for t in terms if t.kind == "absorb"), np.zeros(3))
+    emission = sum((t.weight for t in terms if t.kind == "volume_emission"), np.zeros(3))
+    if not (np.any(sigma_s) or np.any(sigma_a) or np.any(emission)):
+        return None
+    g = mean_anisotropy(scatter, subject, messages) if scatter else 0.0
+    return Medium(name, sigma_a=rgb(np.maximum(sigma_a, 0.0)),
+                  sigma_s=rgb(np.maximum(sigma_s, 0.0)), g=g, emission=rgb(emission))
+
+
+class MaterialExport:
+    """One Blender material converted: its surface and, if it has one, its medium."""
+
+    def __init__(self, material: Material, medium: Medium | None) -> None:
+        self.material = material
+        self.medium = medium
+
+
+def viewport_color_material(blender_material) -> Material:
+    color = tuple(float(c) for c in blender_material.diffuse_color[:3])
+    return Material(blender_material.name_full, lobes=[Lobe("diffuse", color=color)])
+
+
+def active_output(node_tree):
+    """The output node Cycles uses (active, target All or Cycles)."""
+    return node_tree.get_output_node("CYCLES") if node_tree is not None else None
+
+
+def convert_material(blender_material, messages: Messages) -> MaterialExport:
+    name = blender_material.name_full
+    subject = material_subject(name)
+    tree = blender_material.node_tree
+    if tree is None or not getattr(blender_material, "use_nodes", True):
+        return MaterialExport(viewport_color_material(blender_material), None)
+    output = active_output(tree)
+    if output is None:
+        messages.warn(subject, "has no active Material Output node; rendered black (as in Cycles)")
+        return MaterialExport(Material(name, lobes=close_open_sides([])), None)
+    graph = ShaderGraph(subject, messages)
+    if graph.link_source(output.inputs["Displacement"]) is not None:
+        messages.warn(subject, "displacement is not supported and is ignored")
+    volume_terms = as_volume_terms(graph.closure(output.inputs["Volume"]))
+    medium = volume_medium(medium_name(name), volume_terms, messages, subject)
+    if graph.link_source(output.inputs["Surface"]) is None and medium is not None:
+        return MaterialExport(Material(name), medium)  # invisible boundary of the medium
+    return MaterialExport(surface_material(name, graph.closure(output.inputs["Surface"]), messages), medium)
+
+
+class MaterialLibrary:
+    """Converts each Blender material once and collects the scene's Materials and Media."""
+
+    def __init__(self, messages: Messages) -> None:
+        self.messages = messages
+        self._by_name: dict[str, MaterialExport] = {}
+        self._default: Material | None = None
+        self.extra_materials: list[Material] = []  # e.g. area-light emitters
+
+    def get(self, blender_material) -> MaterialExport:
+        if blender_material is None:
+            return MaterialExport(self.default(), None)
+        name = blender_material.name_full
+        if name not in self._by_name:
+            self._by_name[name] = convert_material(blender_material, self.messages)
+        return self._by_name[name]
+
+    def default(self) -> Material:
+        if self._default is None:
+            self._default = default_material()
+        return self._default
+
+    def add(self, material: Material) -> None:
+        self.extra_materials.append(material)
+
+    def materials(self, used: set[str]) -> list[Material]:
+        candidates = [entry.material for entry in self._by_name.values()] + self.extra_materials
+        if self._default is not None:
+            candidates.append(self._default)
+        return [m for m in candidates if m.name in used]
+
+    def medium_by_material(self) -> dict[str, str | None]:
+        """Name of the medium each converted material encloses (None for none)."""
+        return {e.material.name: (e.medium.name if e.medium else None) for e in self._by_name.values()}
+
+    def media(self, used: set[str]) -> list[Medium]:
+        return [e.medium for e in self._by_name.values() if e.medium is not None and e.medium.name in used]

@@ -1,0 +1,184 @@
+"""A whole evaluated Blender scene (depsgraph) to a Haze Scene.
+
+Everything comes from the evaluated dependency graph: modifiers are applied, instances
+(particles, geometry nodes, collection instances) are included, and objects hidden from the
+render are excluded. Instances of one object under one instancer are merged into one Haze
+mesh, so thousands of instances do not become thousands of meshes.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from renderer.scene import Film, IntegratorSettings, Scene
+
+from .camera import export_camera, film_size
+from .lights import area_light, point_light, spot_light, sun_light
+from .materials import MaterialLibrary
+from .mesh import LocalGeometry, MeshPart, build_meshes, read_geometry, transform
+from .messages import Messages, object_subject
+from .world import world_environment
+
+GEOMETRY_TYPES = {"MESH", "CURVE", "SURFACE", "FONT", "META"}
+UNSUPPORTED_TYPES = {"CURVES": "hair curves", "POINTCLOUD": "point clouds", "VOLUME": "volume objects",
+                     "GREASEPENCIL": "Grease Pencil"}
+
+
+@dataclass
+class ExportResult:
+    scene: Scene
+    warnings: list[str] = field(default_factory=list)
+    light_names: list[str] = field(default_factory=list)  # Blender object of each scene.lights entry
+
+
+def integrator_settings(haze_settings) -> IntegratorSettings:
+    """IntegratorSettings from the scene's Haze properties (scene.haze)."""
+    return IntegratorSettings(
+        spp=int(haze_settings.samples),
+        max_bounces=int(haze_settings.max_bounces),
+        seed=int(haze_settings.seed),
+        sampling=haze_settings.sampling,
+        transmittance=haze_settings.transmittance,
+        distance_sampling=haze_settings.distance_sampling,
+        equiangular=bool(haze_settings.equiangular),
+        majorant_grid=bool(haze_settings.majorant_grid),
+        time_limit=float(haze_settings.time_limit),
+    )
+
+
+def worker_count(haze_settings) -> int:
+    return int(haze_settings.workers) or (os.cpu_count() or 1)
+
+
+def instance_group(instance) -> str:
+    """Name of the Haze mesh an object instance goes into."""
+    name = instance.object.name
+    if instance.is_instance and instance.parent is not None:
+        return f"{instance.parent.name}/{name}"
+    return name
+
+
+def is_rendered(instance, render_depsgraph: bool) -> bool:
+    if instance.is_instance:
+        return True
+    if not instance.show_self:
+        return False  # e.g. a particle emitter whose own mesh is hidden
+    # A viewport depsgraph (the export operator) still contains render-disabled objects.
+    original = instance.object.original
+    return render_depsgraph or original is None or not original.hide_render
+
+
+class MeshCollector:
+    """Reads geometry once per evaluated mesh and groups instances into Haze meshes."""
+
+    def __init__(self, library: MaterialLibrary, messages: Messages) -> None:
+        self.library = library
+        self.messages = messages
+        self.groups: dict[str, list[MeshPart]] = {}
+        self._geometry_cache: dict[tuple, LocalGeometry | None] = {}
+
+    def add(self, instance) -> None:
+        obj = instance.object
+        geometry = self._local_geometry(obj)
+        if geometry is None or len(geometry.triangles) == 0:
+            return
+        world = transform(geometry, np.array(instance.matrix_world, dtype=np.float64))
+        names = [self.library.get(m).material.name for m in self._slot_materials(obj)]
+        self.groups.setdefault(instance_group(instance), []).append(MeshPart(world, names))
+
+    def _slot_materials(self, obj) -> list:
+        materials = [slot.material for slot in obj.material_slots]
+        if not materials and obj.data is not None and hasattr(obj.data, "materials"):
+            materials = list(obj.data.materials)  # e.g. geometry-nodes output without object slots
+        return materials or [None]
+
+    def _local_geometry(self, obj) -> LocalGeometry | None:
+        data = obj.data
+        key = (obj.name, data.name if data is not None else "", data.as_pointer() if data is not None else 0)
+        if key not in self._geometry_cache:
+            self._geometry_cache[key] = self._read(obj)
+        return self._geometry_cache[key]
+
+    def _read(self, obj) -> LocalGeometry | None:
+        if obj.type == "MESH":
+            return read_geometry(obj.data)
+        mesh = obj.to_mesh()  # curves, text, surfaces, metaballs: their evaluated mesh
+        try:
+            return read_geometry(mesh) if mesh is not None else None
+        finally:
+            obj.to_mesh_clear()
+
+    def meshes(self) -> list:
+        medium_of = self.library.medium_by_material()
+        result = []
+        for name, parts in self.groups.items():
+            result.extend(build_meshes(name, parts, medium_of, self.messages))
+        return result
+
+
+def add_light(instance, library: MaterialLibrary, lights: list, light_names: list[str], emitters: list,
+              messages: Messages) -> None:
+    obj = instance.object
+    count = len(lights)
+    light = obj.data
+    matrix = np.array(instance.matrix_world, dtype=np.float64)
+    subject = object_subject(obj.name)
+    if light.type == "POINT":
+        lights.append(point_light(light, matrix, subject, messages))
+    elif light.type == "SPOT":
+        lights.append(spot_light(light, matrix, subject, messages))
+    elif light.type == "SUN":
+        lights.append(sun_light(light, matrix))
+    elif light.type == "AREA":
+        emitter = area_light(light, matrix, instance_group(instance), messages)
+        if emitter is not None:
+            mesh, material = emitter
+            library.add(material)
+            emitters.append(mesh)
+    if len(lights) > count:
+        light_names.append(instance_group(instance))
+
+
+def export_scene(depsgraph, film: Film | None = None, render_depsgraph: bool = True) -> ExportResult:
+    """Haze Scene of an evaluated depsgraph; `film` overrides the output size (e.g. the engine's)."""
+    messages = Messages()
+    scene = depsgraph.scene_eval
+    film = film or Film(*film_size(scene.render))
+    camera_object = scene.camera.evaluated_get(depsgraph) if scene.camera is not None else None
+    camera = export_camera(camera_object, film, scene.render, scene.name, messages)
+    library = MaterialLibrary(messages)
+    collector = MeshCollector(library, messages)
+    lights: list = []
+    light_names: list[str] = []
+    emitters: list = []
+    for instance in depsgraph.object_instances:
+        if not is_rendered(instance, render_depsgraph):
+            continue
+        kind = instance.object.type
+        if kind in GEOMETRY_TYPES:
+            collector.add(instance)
+        elif kind == "LIGHT":
+            add_light(instance, library, lights, light_names, emitters, messages)
+        elif kind in UNSUPPORTED_TYPES:
+            messages.warn(object_subject(instance.object.name),
+                          f"{UNSUPPORTED_TYPES[kind]} are not supported by Haze and are not rendered")
+    environment, world_medium = world_environment(scene.world, messages)
+    meshes = collector.meshes() + emitters
+    used_materials = {name for mesh in meshes for name in mesh.materials}
+    used_media = {mesh.medium for mesh in meshes if mesh.medium is not None}
+    media = library.media(used_media) + ([world_medium] if world_medium is not None else [])
+    result = Scene(
+        camera=camera,
+        film=film,
+        integrator=integrator_settings(scene.haze),
+        materials=library.materials(used_materials),
+        meshes=meshes,
+        lights=lights,
+        media=media,
+        environment=environment,
+        medium=world_medium.name if world_medium is not None else None,
+    )
+    return ExportResult(result, messages.warnings, light_names)

@@ -1,0 +1,43 @@
+"""The world: constant background radiance and the scene-wide (world) volume.
+
+Haze's environment is one constant radiance. The world's Surface is folded like a material
+(Background colour x strength, Mix/Add of Backgrounds with constant factors); anything that
+varies with direction (sky or environment textures...) is warned about once and replaced by
+the unlinked value of the input it feeds (documented fallback).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from renderer.scene import Environment, Medium
+
+from .materials import active_output, volume_medium
+from .messages import Messages
+from .nodes import ShaderGraph, as_volume_terms, rgb
+
+
+def world_subject(name: str) -> str:
+    return f"World '{name}'"
+
+
+def world_environment(world, messages: Messages) -> tuple[Environment, Medium | None]:
+    """(background radiance, world volume) of a Blender world; black and none without one."""
+    if world is None:
+        return Environment(), None
+    tree = world.node_tree
+    if tree is None or not getattr(world, "use_nodes", True):
+        return Environment(radiance=rgb(np.asarray(world.color[:3], dtype=np.float64))), None
+    output = active_output(tree)
+    if output is None:
+        messages.warn(world_subject(world.name), "has no active World Output node; the background is black")
+        return Environment(), None
+    graph = ShaderGraph(world_subject(world.name), messages)
+    terms = graph.closure(output.inputs["Surface"])
+    radiance = sum((t.weight for t in terms if t.kind == "emission" and t.sides != "back"), np.zeros(3))
+    if any(t.kind != "emission" for t in terms):
+        messages.warn(world_subject(world.name),
+                      "only Background shaders light the world surface; others are ignored")
+    volume_terms = as_volume_terms(graph.closure(output.inputs["Volume"]))
+    medium = volume_medium(f"{world.name} (world volume)", volume_terms, messages, world_subject(world.name))
+    return Environment(radiance=rgb(radiance)), medium

@@ -1,0 +1,90 @@
+"""File > Export > Haze Scene: write the scene folder the `python -m renderer` CLI renders."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import bpy
+from bpy.props import StringProperty
+from bpy_extras.io_utils import ExportHelper
+
+from . import bootstrap
+from .export.messages import ExportError
+
+SCENE_FILE = "scene.json"
+
+
+def target_problem(folder: Path) -> str | None:
+    """Why exporting into `folder` could destroy the user's files, or None if it is safe.
+
+    Only a new folder, an empty one, or a previous Haze export (it has scene.json) is used;
+    anything else belongs to the user and is left alone.
+    """
+    if folder.exists() and not folder.is_dir():
+        return f"'{folder}' is a file, not a folder"
+    if folder.is_dir() and any(folder.iterdir()) and not (folder / SCENE_FILE).is_file():
+        return f"'{folder}' already holds other files; choose a new or empty folder"
+    return None
+
+
+def export_to_folder(context, folder: Path) -> list[str]:
+    """Export the evaluated scene into `folder`; returns the export warnings."""
+    problem = bootstrap.renderer_problem()
+    if problem:
+        raise ExportError("Haze", problem)
+    from renderer.errors import SceneError
+    from renderer.scenefile import save_scene, validate_scene
+
+    from .engine import describe_scene_error
+    from .export.scene import export_scene
+
+    exported = export_scene(context.evaluated_depsgraph_get(), render_depsgraph=False)
+    try:
+        validate_scene(exported.scene)
+    except SceneError as error:
+        raise ExportError("Haze scene", describe_scene_error(error, exported)) from error
+    save_scene(exported.scene, folder)
+    return exported.warnings
+
+
+class HAZE_OT_export_scene(bpy.types.Operator, ExportHelper):
+    """Export the scene as a Haze scene folder (scene.json and arrays) for the command-line renderer"""
+
+    bl_idname = "export_scene.haze"
+    bl_label = "Export Haze Scene"
+    bl_options = {"PRESET"}
+
+    filename_ext = ""
+    check_extension = None
+    filter_glob: StringProperty(default="", options={"HIDDEN"})
+
+    def execute(self, context):
+        folder = Path(bpy.path.abspath(self.filepath)).resolve()
+        problem = target_problem(folder)
+        if problem:
+            self.report({"ERROR"}, f"Export Haze Scene: {problem}")
+            return {"CANCELLED"}
+        try:
+            warnings = export_to_folder(context, folder)
+        except (ExportError, OSError) as error:
+            self.report({"ERROR"}, str(error))
+            return {"CANCELLED"}
+        for text in warnings:
+            self.report({"WARNING"}, text)
+        self.report({"INFO"}, f"Haze scene written to {folder}{os.sep}")
+        return {"FINISHED"}
+
+
+def menu_export(self, context) -> None:
+    self.layout.operator(HAZE_OT_export_scene.bl_idname, text="Haze Scene")
+
+
+def register() -> None:
+    bpy.utils.register_class(HAZE_OT_export_scene)
+    bpy.types.TOPBAR_MT_file_export.append(menu_export)
+
+
+def unregister() -> None:
+    bpy.types.TOPBAR_MT_file_export.remove(menu_export)
+    bpy.utils.unregister_class(HAZE_OT_export_scene)

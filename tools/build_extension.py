@@ -1,0 +1,191 @@
+"""Build the Haze Blender extension: dist/haze-<version>.zip.
+
+Steps:
+1. Stage build/extension/haze/: the add-on (addon/), the manifest restricted to the chosen
+   platforms, and wheels/: the renderer (renderer/ packed as a pure-Python wheel, so the
+   add-on and any worker process import it as the top-level `renderer` package) plus the
+   exact third-party wheels the manifest lists, fetched with `pip download` into a cache
+   (build/wheels/). No tests, examples, caches or __pycache__ go in.
+2. Run Blender's extension tool (shipped in the bpy wheel) to `validate` and `build` it.
+
+Usage: .venv/bin/python tools/build_extension.py [--platform linux-x64 ...] [--all-platforms]
+"""
+
+from __future__ import annotations
+
+import argparse
+import base64
+import hashlib
+import importlib.util
+import re
+import shutil
+import subprocess
+import sys
+import tomllib
+import zipfile
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+MANIFEST = ROOT / "blender_manifest.toml"
+BUILD = ROOT / "build"
+STAGE = BUILD / "extension" / "haze"
+WHEEL_CACHE = BUILD / "wheels"
+DIST = ROOT / "dist"
+IGNORED = shutil.ignore_patterns("__pycache__", "*.pyc", "*.pyo", "README-section.md", ".*")
+FIXED_ZIP_TIME = (2024, 1, 1, 0, 0, 0)  # reproducible renderer wheel
+RENDERER_DIST = "haze_renderer"
+
+
+def extension_cli() -> Path:
+    """blender_ext.py inside the installed bpy wheel."""
+    spec = importlib.util.find_spec("bpy")  # located, not imported: importing bpy is slow
+    package = Path(spec.origin).parent if spec is not None and spec.origin else None
+    matches = sorted(package.glob("*/scripts/addons_core/bl_pkg/cli/blender_ext.py")) if package else []
+    if not matches:
+        raise SystemExit("Blender's extension tool (bl_pkg/cli/blender_ext.py) was not found; "
+                         "install the bpy package in this Python")
+    return matches[-1]
+
+
+def wheel_platform(filename: str) -> str | None:
+    """Blender platform of a wheel from its tag (None = pure Python, any platform)."""
+    tag = filename.removesuffix(".whl").split("-")[-1]
+    if tag == "any":
+        return None
+    if "manylinux" in tag or "linux" in tag:
+        return "linux-arm64" if "aarch64" in tag else "linux-x64"
+    if tag.startswith("win"):
+        return "windows-arm64" if "arm64" in tag else "windows-x64"
+    if tag.startswith("macosx"):
+        return "macos-arm64" if "arm64" in tag else "macos-x64"
+    raise SystemExit(f"unknown platform tag in wheel {filename}")
+
+
+def pip_requirement(filename: str) -> tuple[str, list[str]]:
+    """('name==version', [pip platform tags]) to download exactly this wheel file."""
+    name, version, *_rest, platform_tag = filename.removesuffix(".whl").split("-")
+    return f"{name}=={version}", platform_tag.split(".")
+
+
+def download_wheel(filename: str) -> Path:
+    """The third-party wheel `filename` from the cache, fetched with pip when missing."""
+    target = WHEEL_CACHE / filename
+    if target.is_file():
+        return target
+    requirement, platforms = pip_requirement(filename)
+    command = [sys.executable, "-m", "pip", "download", "--only-binary=:all:", "--no-deps",
+               "--python-version", "3.11", "--dest", str(WHEEL_CACHE), requirement]
+    for platform in platforms:
+        command += ["--platform", platform]
+    print("fetching", filename)
+    subprocess.run(command, check=True)
+    if not target.is_file():
+        found = sorted(p.name for p in WHEEL_CACHE.glob(f"{requirement.split('==')[0]}-*.whl"))
+        raise SystemExit(f"pip did not produce {filename} (found: {found}); update blender_manifest.toml")
+    return target
+
+
+def record_line(path: str, data: bytes) -> str:
+    digest = base64.urlsafe_b64encode(hashlib.sha256(data).digest()).rstrip(b"=").decode()
+    return f"{path},sha256={digest},{len(data)}"
+
+
+def renderer_wheel(version: str, dest: Path) -> Path:
+    """Pack renderer/ (sources only) as a pure-Python wheel, reproducibly."""
+    files = sorted(p for p in (ROOT / "renderer").rglob("*")
+                   if p.is_file() and "__pycache__" not in p.parts and p.suffix not in {".pyc", ".pyo"})
+    info = f"{RENDERER_DIST}-{version}.dist-info"
+    metadata = {
+        f"{info}/METADATA": f"Metadata-Version: 2.1\nName: {RENDERER_DIST}\nVersion: {version}\n"
+                            "Summary: Haze volumetric path tracer (bundled with the Haze extension)\n",
+        f"{info}/WHEEL": "Wheel-Version: 1.0\nGenerator: haze-build\nRoot-Is-Purelib: true\n"
+                         "Tag: py3-none-any\n",
+        f"{info}/top_level.txt": "renderer\n",
+    }
+    path = dest / f"{RENDERER_DIST}-{version}-py3-none-any.whl"
+    records = []
+    with zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED) as archive:
+        for file in files:
+            name = file.relative_to(ROOT).as_posix()
+            data = file.read_bytes()
+            archive.writestr(zipfile.ZipInfo(name, FIXED_ZIP_TIME), data, zipfile.ZIP_DEFLATED)
+            records.append(record_line(name, data))
+        for name, text in metadata.items():
+            archive.writestr(zipfile.ZipInfo(name, FIXED_ZIP_TIME), text, zipfile.ZIP_DEFLATED)
+            records.append(record_line(name, text.encode()))
+        records.append(f"{info}/RECORD,,")
+        archive.writestr(zipfile.ZipInfo(f"{info}/RECORD", FIXED_ZIP_TIME), "\n".join(records) + "\n")
+    return path
+
+
+def toml_list(values: list[str]) -> str:
+    return "[\n" + "".join(f'  "{v}",\n' for v in values) + "]"
+
+
+def staged_manifest(text: str, platforms: list[str], wheels: list[str]) -> str:
+    """The repository manifest with `platforms` and `wheels` limited to this build."""
+    text = re.sub(r"(?ms)^platforms = \[.*?\]", f"platforms = {toml_list(platforms)}", text, count=1)
+    return re.sub(r"(?ms)^wheels = \[.*?\]", f"wheels = {toml_list(wheels)}", text, count=1)
+
+
+def selected_wheels(manifest: dict, platforms: list[str]) -> list[str]:
+    names = [Path(w).name for w in manifest["wheels"]]
+    return [n for n in names if wheel_platform(n) is None or wheel_platform(n) in platforms]
+
+
+def stage(platforms: list[str]) -> Path:
+    text = MANIFEST.read_text()
+    manifest = tomllib.loads(text)
+    unknown = sorted(set(platforms) - set(manifest["platforms"]))
+    if unknown:
+        raise SystemExit(f"platforms {unknown} are not in blender_manifest.toml ({manifest['platforms']})")
+    if STAGE.exists():
+        shutil.rmtree(STAGE)  # our own staging folder, rebuilt every time
+    shutil.copytree(ROOT / "addon", STAGE, ignore=IGNORED)
+    wheels_dir = STAGE / "wheels"
+    wheels_dir.mkdir()
+    WHEEL_CACHE.mkdir(parents=True, exist_ok=True)
+    wheels = selected_wheels(manifest, platforms)
+    for name in wheels:
+        if name.startswith(f"{RENDERER_DIST}-"):
+            built = renderer_wheel(manifest["version"], wheels_dir)
+            if built.name != name:
+                raise SystemExit(f"manifest lists {name} but the renderer wheel is {built.name}")
+        else:
+            shutil.copy2(download_wheel(name), wheels_dir / name)
+    (STAGE / "blender_manifest.toml").write_text(
+        staged_manifest(text, platforms, [f"./wheels/{n}" for n in wheels]))
+    return STAGE
+
+
+def run_cli(*arguments: str) -> None:
+    subprocess.run([sys.executable, str(extension_cli()), *arguments], check=True)
+
+
+def parse_arguments(argv: list[str]) -> argparse.Namespace:
+    parser = argparse.ArgumentParser(description="Build the Haze Blender extension zip.")
+    parser.add_argument("--platform", action="append", dest="platforms",
+                        help="Blender platform to bundle wheels for (repeatable; default linux-x64)")
+    parser.add_argument("--all-platforms", action="store_true", help="every platform of the manifest")
+    return parser.parse_args(argv)
+
+
+def main(argv: list[str]) -> Path:
+    arguments = parse_arguments(argv)
+    platforms = arguments.platforms or ["linux-x64"]
+    if arguments.all_platforms:
+        platforms = tomllib.loads(MANIFEST.read_text())["platforms"]
+    source = stage(platforms)
+    run_cli("validate", str(source))
+    DIST.mkdir(exist_ok=True)
+    version = tomllib.loads(MANIFEST.read_text())["version"]
+    output = DIST / f"haze-{version}.zip"  # the tool's default name: {id}-{version}.zip
+    run_cli("build", "--source-dir", str(source), "--output-dir", str(DIST))
+    if not output.is_file():
+        raise SystemExit(f"the extension tool did not write {output}")
+    print(f"built {output} for {', '.join(platforms)}")
+    return output
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])
