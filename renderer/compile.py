@@ -15,6 +15,7 @@ import numpy as np
 
 from .bsdfs.table import build_material_table
 from .lights.table import LightTable, build_light_table
+from .media.compile import compile_media
 from .scene import Scene
 
 SIDES = {"front": 1, "back": 2, "both": 3}
@@ -119,7 +120,7 @@ def compile_scene(scene: Scene) -> CompiledScene:
                                radius)
     geometry = _geometry_from_meshes(scene, vertices, indices, tri_mat, tri_med, lights.tri_light)
     materials = build_material_table(scene.materials)
-    media = (np.zeros(1, np.int32),)  # TEMPORARY until renderer.media lands
+    media = compile_media(scene.media, scene.integrator.majorant_grid)
     world_medium = -1 if scene.medium is None else medium_index[scene.medium]
     has_media = bool(len(scene.media)) and (world_medium >= 0 or bool((tri_med >= 0).any()))
     # Shadow rays need an interface walk when a surface can let them through: a medium

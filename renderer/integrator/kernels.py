@@ -26,7 +26,8 @@ import math
 import numpy as np
 from numba import njit
 
-from ..bsdfs.material import bsdf_eval, bsdf_has_lobes, bsdf_sample
+from ..bsdfs import TRANSPARENT
+from ..bsdfs.material import L_COLOR, L_KIND, L_SIDES, L_WEIGHT, bsdf_eval, bsdf_has_lobes, bsdf_sample
 from ..camera import camera_ray
 from ..kernels.rng import path_key, uniform
 from ..kernels.vecmath import add, dot, madd, max3, mul, neg, normalize, onb, scale, sub, to_local, to_world
@@ -40,7 +41,7 @@ from ..lights.sample import (
 )
 from .media_api import (
     nee_vertex,
-    phase_pdf,
+    phase_eval,
     sample_distance,
     sample_phase,
     stack_has_grid,
@@ -65,7 +66,7 @@ MAX_CROSSINGS = 256  # interfaces a path may pass before it is ended (guards ope
 RAY_FAR = 1e30
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def offset_origin(x, ng, direction):
     """Move x off its surface to the side `direction` leaves on (Embree has no tnear)."""
     eps = 1e-4 * (1.0 + max(abs(x[0]), max(abs(x[1]), abs(x[2]))))
@@ -74,7 +75,7 @@ def offset_origin(x, ng, direction):
     return madd(x, ng, eps)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def power_heuristic(a, b):
     a2 = a * a
     b2 = b * b
@@ -83,12 +84,12 @@ def power_heuristic(a, b):
     return a2 / (a2 + b2)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _vec(a, i):
     return (float(a[i, 0]), float(a[i, 1]), float(a[i, 2]))
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _put(a, i, v):
     a[i, 0] = v[0]
     a[i, 1] = v[1]
@@ -125,7 +126,7 @@ def start_paths(ps, pixel_of_pid, cam, width, height, seed, first, n, sample_bas
         pixel_of_pid[i] = pixel
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _emit_shadow(sh, s, x, wi, dist, contrib, pid, key, dim, stack):
     _put(sh.o, s, x)
     _put(sh.d, s, wi)
@@ -139,7 +140,7 @@ def _emit_shadow(sh, s, x, wi, dist, contrib, pid, key, dim, stack):
     sh.alive[s] = 1
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _shadow_transmittance(md, cfg, stack, x, wi, dist, key, dim):
     """Transmittance of the whole shadow segment when it crosses no interface (the stack is
     constant along it); with interfaces the walk accumulates it piece by piece instead."""
@@ -148,7 +149,7 @@ def _shadow_transmittance(md, cfg, stack, x, wi, dist, key, dim):
     return transmittance(md, stack, x, wi, 0.0, dist, key, dim, cfg[CFG_DELTA_TR] != 0)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _light_sample_weight(lt, light, pdf_light, pdf_scatter, is_delta, sampling):
     """MIS weight of a light sample; pdf_light already includes the selection probability."""
     if is_delta or sampling == SAMPLING_NEE:
@@ -156,7 +157,7 @@ def _light_sample_weight(lt, light, pdf_light, pdf_scatter, is_delta, sampling):
     return power_heuristic(pdf_light, pdf_scatter)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _hit_weight(mis_pdf, pdf_light, sampling):
     """MIS weight of emission found by BSDF/phase sampling (mis_pdf 0 = camera or delta)."""
     if mis_pdf <= 0.0 or sampling == SAMPLING_BSDF:
@@ -176,9 +177,9 @@ def _medium_nee(ps, i, md, lt, cfg, x, d, beta, key, dim, sh, s, light, lp, weig
     p_light = pdf * pmf[light]
     if p_light <= 0.0 or max3(le) <= 0.0:
         return s, dim
-    ph = phase_pdf(md, stack, x, d, wi)
+    fph, ph = phase_eval(md, stack, x, d, wi)
     w = _light_sample_weight(lt, light, p_light, ph, is_delta, cfg[CFG_SAMPLING])
-    c = scale(mul(mul(beta, weight), le), ph * w / p_light)
+    c = scale(mul(mul(mul(beta, weight), le), fph), w / p_light)
     if max3(c) <= 0.0:
         return s, dim
     tr, dim = _shadow_transmittance(md, cfg, stack, x, wi, dist, key, dim)
@@ -187,7 +188,7 @@ def _medium_nee(ps, i, md, lt, cfg, x, d, beta, key, dim, sh, s, light, lp, weig
     return s + 1, dim + 64
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _russian_roulette(ps, i, key, dim, rr_depth):
     """Survive with probability max(throughput) (capped at 1) after rr_depth bounces."""
     if ps.depth[i] < rr_depth:
@@ -261,9 +262,10 @@ def shade(n, ps, prim, bu, bv, geo, mt, lt, env_light, sun_rows, md, cfg, L, sh)
                     dim += 3
                     s, dim = _medium_nee(ps, i, md, lt, cfg, x, d, beta, key, dim, sh, s, light, lp,
                                          (1.0, 1.0, 1.0))
-                wi, ph_pdf = sample_phase(md, stack, x, d, uniform(key, dim), uniform(key, dim + 1),
-                                          uniform(key, dim + 2))
+                wi, pw, ph_pdf = sample_phase(md, stack, x, d, uniform(key, dim), uniform(key, dim + 1),
+                                              uniform(key, dim + 2))
                 dim += 3
+                beta = mul(beta, pw)
                 _put(ps.beta, i, beta)
                 ps.depth[i] = depth + 1
                 ps.mis_pdf[i] = ph_pdf
@@ -314,6 +316,10 @@ def shade(n, ps, prim, bu, bv, geo, mt, lt, env_light, sun_rows, md, cfg, L, sh)
                 L[pid, 2] += beta[2] * le[2] * w
 
         if not bsdf_has_lobes(mt, m, front):
+            if light >= 0:
+                # A pure emitter (Cycles' Emission shader): black, opaque.
+                ps.alive[i] = 0
+                continue
             # An invisible interface: cross it without scattering.
             _cross_interface(ps, i, geo, p, front, x, ng, d, beta)
             ps.dim[i] = dim
@@ -377,7 +383,7 @@ def shade(n, ps, prim, bu, bv, geo, mt, lt, env_light, sun_rows, md, cfg, L, sh)
     return s
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _shading_normal(geo, p, b0, b1, b2, ng):
     sn0 = _vec(geo.sn[p], 0)
     sn1 = _vec(geo.sn[p], 1)
@@ -389,7 +395,7 @@ def _shading_normal(geo, p, b0, b1, b2, ng):
     return n
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _update_stack(ps, i, geo, p, front):
     med = geo.medium[p]
     if med >= 0:
@@ -399,7 +405,7 @@ def _update_stack(ps, i, geo, p, front):
             stack_remove(ps.stack[i], med)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _cross_interface(ps, i, geo, p, front, x, ng, d, beta):
     """Continue straight through the surface at x, entering or leaving its medium."""
     _update_stack(ps, i, geo, p, front)
@@ -456,7 +462,7 @@ def walk_shadows(count, sh, prim, thit, remaining, geo, mt, md, cfg, L):
             continue
         ng = _vec(geo.ng, p)
         front = dot(d, ng) < 0.0
-        tint = _transparency(mt, geo.material[p], front)
+        tint = (0.0, 0.0, 0.0) if geo.light[p] >= 0 else _transparency(mt, geo.material[p], front)
         if max3(tint) <= 0.0:
             sh.alive[s] = 0
             continue
@@ -480,14 +486,14 @@ def _transparency(mt, m, front):
     with no lobes (an interface), the transparent lobes' weight*color otherwise."""
     if not bsdf_has_lobes(mt, m, front):
         return (1.0, 1.0, 1.0)
-    start, count, kind, weight, color, sides = mt[0], mt[1], mt[2], mt[3], mt[4], mt[7]
+    mats, lobes = mt
     side = 1 if front else 2
     r, g, b = 0.0, 0.0, 0.0
-    for j in range(start[m], start[m] + count[m]):
-        if (sides[j] & side) != 0 and kind[j] == 5:
-            r += weight[j, 0] * color[j, 0]
-            g += weight[j, 1] * color[j, 1]
-            b += weight[j, 2] * color[j, 2]
+    for j in range(mats[m, 0], mats[m, 0] + mats[m, 1]):
+        if (int(lobes[j, L_SIDES]) & side) != 0 and int(lobes[j, L_KIND]) == TRANSPARENT:
+            r += lobes[j, L_WEIGHT] * lobes[j, L_COLOR]
+            g += lobes[j, L_WEIGHT + 1] * lobes[j, L_COLOR + 1]
+            b += lobes[j, L_WEIGHT + 2] * lobes[j, L_COLOR + 2]
     return (min(r, 1.0), min(g, 1.0), min(b, 1.0))
 
 

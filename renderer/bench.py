@@ -1,0 +1,117 @@
+"""Speed benchmark: `python -m renderer.bench` (or `make bench`). Prints figures; asserts nothing.
+
+For each example at 128x128 and 256x256: M samples/s on one core, path vertices/s, the
+share of time spent inside Embree, and the speed-up from two worker processes. Also the
+cold (compiling) and warm (cached) start-up of the numba kernels, each in a fresh process.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import subprocess
+import sys
+import time
+
+from .film import Film
+
+
+def _scenes(size: int):
+    from examples.scenes import cornell_box, cornell_fog
+
+    return {
+        "cornell": cornell_box(size, 1, max_bounces=3),
+        "cornell_fog_g0": cornell_fog(size, 1, g=0.0, max_bounces=3),
+        "cornell_fog_g0.9": cornell_fog(size, 1, g=0.9, max_bounces=3),
+    }
+
+
+class _EmbreeTimer:
+    """Wraps an Intersector to add up the seconds spent inside Embree."""
+
+    def __init__(self, isect):
+        self.seconds = 0.0
+        self._intersect, self._occluded = isect.intersect, isect.occluded
+        isect.intersect, isect.occluded = self.intersect, self.occluded
+
+    def intersect(self, *a):
+        t = time.perf_counter()
+        r = self._intersect(*a)
+        self.seconds += time.perf_counter() - t
+        return r
+
+    def occluded(self, *a):
+        t = time.perf_counter()
+        r = self._occluded(*a)
+        self.seconds += time.perf_counter() - t
+        return r
+
+
+def one_core(scene, spp: int) -> dict:
+    from .compile import compile_scene
+    from .integrator.wavefront import Tracer
+
+    cs = compile_scene(scene)
+    tracer = Tracer(cs, scene.integrator)
+    tracer.trace(Film(cs.width, cs.height), 0, 1, 0)  # compile / warm caches
+    timer = _EmbreeTimer(tracer.isect)
+    rays0 = tracer.stats["rays"]
+    film = Film(cs.width, cs.height)
+    t = time.perf_counter()
+    tracer.trace(film, 1, spp, 0)
+    seconds = time.perf_counter() - t
+    samples = cs.width * cs.height * spp
+    return {"msps": samples / seconds / 1e6, "vertices_per_s": (tracer.stats["rays"] - rays0) / seconds / 1e6,
+            "embree_share": timer.seconds / seconds, "seconds": seconds}
+
+
+def two_processes(scene, spp: int) -> float:
+    """Samples/s with 2 worker processes, after their start-up (a warm-up pass), in M/s."""
+    from .render import render_progressive
+
+    scene.integrator.spp = spp + 1
+    t_first = None
+    spp_first = 0
+    last = None
+    for last in render_progressive(scene, workers=2):
+        if t_first is None:
+            t_first, spp_first = last.elapsed, last.spp
+    assert last is not None and t_first is not None
+    samples = scene.film.width * scene.film.height * (last.spp - spp_first)
+    return samples / max(last.elapsed - t_first, 1e-9) / 1e6
+
+
+def startup(cold: bool) -> float:
+    """Seconds to import and render one 16x16 sample in a fresh process (cold: empty cache)."""
+    env = dict(os.environ)
+    if cold:
+        import tempfile
+
+        env["NUMBA_CACHE_DIR"] = tempfile.mkdtemp(prefix="haze-numba-")
+    code = ("import time; t=time.perf_counter(); from examples.scenes import cornell_fog; "
+            "from renderer.render import render; render(cornell_fog(16, 1)); print(time.perf_counter()-t)")
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, check=True)
+    return float(r.stdout.strip().splitlines()[-1])
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(prog="python -m renderer.bench")
+    p.add_argument("--spp", type=int, default=16, help="samples per pixel per measurement")
+    p.add_argument("--sizes", type=int, nargs="+", default=[128, 256])
+    p.add_argument("--no-startup", action="store_true")
+    args = p.parse_args(argv)
+    if not args.no_startup:
+        print(f"start-up: cold (compiling) {startup(True):.1f} s, warm (cached) {startup(False):.1f} s")
+    print(f"{'scene':<18}{'size':>6}{'M samples/s':>13}{'M vertices/s':>14}{'Embree':>8}{'2 procs':>10}"
+          f"{'speed-up':>10}")
+    for size in args.sizes:
+        for name, scene in _scenes(size).items():
+            r = one_core(scene, args.spp)
+            two = two_processes(_scenes(size)[name], 2 * args.spp)
+            print(f"{name:<18}{size:>6}{r['msps']:>13.3f}{r['vertices_per_s']:>14.3f}"
+                  f"{r['embree_share']:>7.0%}{two:>10.3f}{two / r['msps']:>9.2f}x", flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
