@@ -6,10 +6,13 @@ add-ons folder, or imported with the repository root on sys.path) the renderer i
 from the checkout next to it.
 """
 
+import sys
+
 from . import bootstrap
 
-# Before anything can import numba: its cache must go to a user folder, not the add-on's.
-bootstrap.configure_numba_cache(__package__ or __name__)
+if "bpy" in sys.modules:  # loaded into Blender (not merely imported by a unit test)
+    # Before anything can import numba: its cache must go to a user folder, not the add-on's.
+    bootstrap.configure_numba_cache(__package__ or __name__)
 bootstrap.make_renderer_importable(__file__)
 
 # Used when enabled as a legacy add-on from a clone; extensions read blender_manifest.toml.

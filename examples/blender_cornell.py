@@ -146,7 +146,8 @@ def build_cornell_walls(scene: bpy.types.Scene) -> None:
         quad(name, corners, diffuse_material(f"{name} Wall", WALL_COLORS[name]))
     z, s = 2.0 * BOX_HALF - 0.01, LIGHT_HALF
     # Counter-clockwise seen from below: the front (emitting) face looks down into the box.
-    quad("Light", [(-s, -s, z), (-s, s, z), (s, s, z), (s, -s, z)], one_sided_emitter("Light", LIGHT_RADIANCE))
+    emitter = one_sided_emitter("Light", LIGHT_RADIANCE)
+    quad("Light", [(-s, -s, z), (-s, s, z), (s, s, z), (s, -s, z)], emitter)
 
 
 def build_fog_cornell(width: int = 64, height: int = 64, max_bounces: int = 3) -> bpy.types.Scene:

@@ -60,7 +60,8 @@ def export_camera(camera_object, film: Film, render, scene_name: str, messages: 
         raise ExportError(subject, "is the scene camera but is not a camera object")
     data = camera_object.data
     if data.type != "PERSP":
-        raise ExportError(subject, f"{data.type.lower()} cameras are not supported; use a perspective camera")
+        kind = {"ORTHO": "orthographic", "PANO": "panoramic"}.get(data.type, data.type.lower())
+        raise ExportError(subject, f"{kind} cameras are not supported; use a perspective camera")
     if data.dof.use_dof:
         messages.warn(subject, "depth of field is not supported and is ignored (pinhole camera)")
     if render.pixel_aspect_x != render.pixel_aspect_y:

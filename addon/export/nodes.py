@@ -413,17 +413,26 @@ def blend(graph: ShaderGraph, node, blend_type: str, t, a, b) -> np.ndarray:
     return operation(t, a, b)
 
 
+def by_identifier(sockets, identifier: str):
+    """A socket by its identifier (the Mix node has several inputs named "A", "B"...)."""
+    for socket in sockets:
+        if socket.identifier == identifier:
+            return socket
+    raise KeyError(identifier)
+
+
 def value_mix(graph: ShaderGraph, node, socket, scope: tuple) -> np.ndarray:
     kind = {"FLOAT": "Float", "VECTOR": "Vector", "RGBA": "Color"}.get(node.data_type)
     if kind is None:
         graph.warn_unsupported(node)
         return None
     uniform = node.data_type != "VECTOR" or node.factor_mode == "UNIFORM"
-    factor = graph.input_value(node.inputs["Factor_Float" if uniform else "Factor_Vector"], scope)
+    factor_socket = by_identifier(node.inputs, "Factor_Float" if uniform else "Factor_Vector")
+    factor = graph.input_value(factor_socket, scope)
     if node.clamp_factor:
         factor = np.clip(factor, 0.0, 1.0)
-    a = graph.input_value(node.inputs[f"A_{kind}"], scope)
-    b = graph.input_value(node.inputs[f"B_{kind}"], scope)
+    a = graph.input_value(by_identifier(node.inputs, f"A_{kind}"), scope)
+    b = graph.input_value(by_identifier(node.inputs, f"B_{kind}"), scope)
     result = blend(graph, node, node.blend_type, factor, a, b) if kind == "Color" else a + factor * (b - a)
     if kind == "Color" and node.clamp_result:
         result = np.clip(result, 0.0, 1.0)

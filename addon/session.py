@@ -1,0 +1,215 @@
+"""One render: export, progressive rendering, display and cleanup (no bpy import here).
+
+The render result is always begun and ended, even when the export or the renderer fails:
+Blender expects a result from every render, and a headless
+`bpy.ops.render.render(write_still=True)` crashes without one. Stopping (Esc in the UI,
+test_break, or Ctrl-C / KeyboardInterrupt in a background script) keeps the samples done.
+
+The engine object is only used through RenderEngine's methods (begin_result, update_result,
+end_result, update_progress, update_stats, test_break, report) and resolution_x/_y, so the
+session can be exercised with a stand-in engine.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+import time
+import traceback
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+
+from . import bootstrap
+from .display import ResultBuffer, write_result
+from .export.messages import ExportError
+
+PUSH_INTERVAL = 1.0  # seconds between image updates shown to the user
+MAX_REPORTED_WARNINGS = 20  # more go to the console only, so the UI is not flooded
+
+
+def format_duration(seconds: float) -> str:
+    if not math.isfinite(seconds):
+        return "--:--"
+    minutes, rest = divmod(max(seconds, 0.0), 60.0)
+    return f"{int(minutes):02d}:{rest:05.2f}"
+
+
+def remaining_time(progress, time_limit: float) -> float:
+    """Estimated seconds left: by the sample rate so far, capped by the time limit."""
+    if progress.spp <= 0:
+        return math.inf
+    by_samples = progress.elapsed * (progress.spp_target - progress.spp) / progress.spp
+    if time_limit > 0.0:
+        return min(by_samples, time_limit - progress.elapsed)
+    return by_samples
+
+
+def progress_fraction(progress, time_limit: float) -> float:
+    fraction = progress.spp / max(progress.spp_target, 1)
+    if time_limit > 0.0:
+        fraction = max(fraction, progress.elapsed / time_limit)
+    return min(max(fraction, 0.0), 1.0)
+
+
+def stats_text(progress, time_limit: float) -> str:
+    error = progress.error_estimate
+    noise = f"{error:.3g}" if error is not None and math.isfinite(error) else "--"
+    return (
+        f"Sample {progress.spp}/{progress.spp_target} | Elapsed {format_duration(progress.elapsed)} | "
+        f"Remaining {format_duration(remaining_time(progress, time_limit))} | Noise {noise}"
+    )
+
+
+@contextmanager
+def main_module_hidden():
+    """Hide the __main__ script from multiprocessing while worker processes start.
+
+    The renderer's workers are spawned processes, and spawn re-runs the parent's __main__
+    file in each child. Under Blender that file is a user script (`blender -P script.py`,
+    or a bpy-module script) that imports bpy, which cannot work in a plain worker process,
+    so the worker dies. The workers need nothing from __main__.
+    """
+    main = sys.modules.get("__main__")
+    saved = {name: vars(main)[name] for name in ("__file__", "__spec__") if main and name in vars(main)}
+    try:
+        if main is not None:
+            main.__spec__ = None
+            if "__file__" in saved:
+                del main.__file__
+        yield
+    finally:
+        for name, value in saved.items():
+            setattr(main, name, value)
+
+
+def passes_without_main(frames: Iterator) -> Iterator:
+    """Iterate render passes; workers may be started at any pass, so hide __main__ each time."""
+    while True:
+        with main_module_hidden():
+            try:
+                progress = next(frames)
+            except StopIteration:
+                return
+        yield progress
+
+
+def describe_scene_error(error, export_result) -> str:
+    """A renderer SceneError ("meshes[3].indices: ...") phrased with the Blender object's name."""
+    path, problem = getattr(error, "path", ""), getattr(error, "problem", str(error))
+    for collection, names in (("meshes", [m.name for m in export_result.scene.meshes]),
+                              ("materials", [m.name for m in export_result.scene.materials]),
+                              ("media", [m.name for m in export_result.scene.media]),
+                              ("lights", export_result.light_names)):
+        prefix = f"{collection}["
+        if path.startswith(prefix):
+            index = int(path[len(prefix):path.index("]")])
+            if index < len(names):
+                return f"'{names[index]}' ({path}): {problem}"
+    return f"{path}: {problem}" if path else str(error)
+
+
+class RenderSession:
+    """One F12 render: export, progressive rendering, display, and cleanup."""
+
+    def __init__(self, engine, depsgraph, renderer: Callable | None = None,
+                 exporter: Callable | None = None) -> None:
+        self.engine = engine
+        self._renderer = renderer  # render_progressive stand-in (tests); None = the real one
+        self._exporter = exporter  # export function stand-in (tests); None = the real one
+        self.depsgraph = depsgraph
+        self.settings = depsgraph.scene.haze
+        self.width, self.height = int(engine.resolution_x), int(engine.resolution_y)
+        self.buffer = ResultBuffer(self.width, self.height)
+        self.latest = None  # last Progress received
+        self.cancelled = False
+
+    def run(self) -> None:
+        result = self.engine.begin_result(0, 0, self.width, self.height)
+        try:
+            self._render(result)
+        except KeyboardInterrupt:
+            self.cancelled = True
+        except ExportError as error:
+            self.engine.report({"ERROR"}, str(error))
+        except Exception as error:  # the renderer's own failures must not take Blender down
+            traceback.print_exc()
+            self.engine.report({"ERROR"}, f"Haze: {type(error).__name__}: {error}")
+        finally:
+            self._finish(result)
+
+    def _finish(self, result) -> None:
+        if result is None:
+            return
+        if self.latest is not None:
+            self.buffer.fill(self.latest.image)
+        write_result(result, self.buffer)
+        self.engine.end_result(result)
+        if self.cancelled:
+            samples = self.latest.spp if self.latest is not None else 0
+            self.engine.report({"WARNING"}, f"Haze: render stopped after {samples} samples per pixel")
+
+    def _render(self, result) -> None:
+        problem = bootstrap.renderer_problem()
+        if problem:
+            raise ExportError("Haze", problem)
+        exported = self._export()
+        render_progressive = self._renderer
+        if render_progressive is None:
+            from renderer.render import render_progressive
+
+        self.engine.update_stats("", "Haze | Rendering")
+        frames = render_progressive(exported.scene, workers=self._workers(),
+                                    target_error=float(self.settings.target_error), validate=False)
+        try:
+            self._consume(frames, result)
+        finally:
+            frames.close()  # stops the renderer's workers, also on cancel or error
+
+    def _export(self):
+        from renderer.errors import SceneError
+        from renderer.scene import Film
+        from renderer.scenefile import validate_scene
+
+        from .export.scene import export_scene
+
+        self.engine.update_stats("", "Haze | Exporting scene")
+        exported = (self._exporter or export_scene)(self.depsgraph, Film(self.width, self.height))
+        self._report_warnings(exported.warnings)
+        try:
+            validate_scene(exported.scene)
+        except SceneError as error:
+            raise ExportError("Haze scene", describe_scene_error(error, exported)) from error
+        return exported
+
+    def _workers(self) -> int:
+        from .export.scene import worker_count
+
+        return worker_count(self.settings)
+
+    def _report_warnings(self, warnings: list[str]) -> None:
+        for text in warnings[:MAX_REPORTED_WARNINGS]:
+            self.engine.report({"WARNING"}, text)
+        if len(warnings) > MAX_REPORTED_WARNINGS:
+            for text in warnings[MAX_REPORTED_WARNINGS:]:
+                print(f"Haze warning: {text}")
+            self.engine.report({"WARNING"}, f"Haze: {len(warnings) - MAX_REPORTED_WARNINGS} more warnings "
+                               "were printed to the console")
+
+    def _consume(self, frames, result) -> None:
+        last_push = time.monotonic()
+        time_limit = float(self.settings.time_limit)
+        for progress in passes_without_main(frames):
+            self.latest = progress
+            self.engine.update_progress(progress_fraction(progress, time_limit))
+            self.engine.update_stats("", "Haze | " + stats_text(progress, time_limit))
+            if time.monotonic() - last_push >= PUSH_INTERVAL:
+                self._push(result)
+                last_push = time.monotonic()
+            if self.engine.test_break():
+                self.cancelled = True
+                return
+
+    def _push(self, result) -> None:
+        self.buffer.fill(self.latest.image)
+        write_result(result, self.buffer)
+        self.engine.update_result(result)

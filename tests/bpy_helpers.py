@@ -1,0 +1,367 @@
+"""Helpers for tests that need Blender (the bpy module).
+
+Everything touching bpy runs in a subprocess, so a crash in Blender fails one test instead
+of the whole run, and each run gets fresh HOME / BLENDER_USER_RESOURCES folders so nothing
+of the developer's own Blender setup is read or changed.
+
+This module has two halves:
+* host side (pytest): `run_blender` writes a script, runs it, returns its JSON result;
+  `compare_images` is the statistical comparison of two renderers;
+* Blender side (imported by those scripts): scene builders and render helpers. bpy is
+  imported inside the functions, so pytest can import this file without Blender.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import subprocess
+import sys
+import textwrap
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parents[1]
+TESTS = REPO / "tests"
+EXAMPLES = REPO / "examples"
+PYTHON = sys.executable
+
+# Packages the installed extension must bring itself (never taken from the test venv).
+BUNDLED_MODULES = ("numba", "llvmlite", "embreex", "OpenEXR", "Imath", "openexr", "renderer")
+
+PRELUDE = """\
+import json, os, sys
+for _path in {paths!r}:
+    if _path not in sys.path:
+        sys.path.insert(0, _path)
+"""
+
+EPILOGUE = """
+if __name__ == "__main__":
+    _result = main()
+    with open(os.environ["HAZE_TEST_RESULT"], "w") as _file:
+        json.dump(_result if _result is not None else {}, _file)
+"""
+
+
+@dataclass
+class BlenderRun:
+    returncode: int
+    stdout: str
+    stderr: str
+    result: dict
+
+    def describe(self) -> str:
+        return f"exit code {self.returncode}\n--- stdout ---\n{self.stdout[-6000:]}\n" \
+               f"--- stderr ---\n{self.stderr[-6000:]}"
+
+
+def blender_environment(tmp: Path, numba_cache: Path | None) -> dict[str, str]:
+    """Environment of a Blender subprocess: private user folders, shared numba cache."""
+    home = tmp / "home"
+    user = tmp / "blender_user"
+    home.mkdir(parents=True, exist_ok=True)
+    user.mkdir(parents=True, exist_ok=True)
+    env = {k: v for k, v in os.environ.items() if not k.startswith(("BLENDER_", "NUMBA_", "PYTHON"))}
+    env.update(HOME=str(home), BLENDER_USER_RESOURCES=str(user), XDG_CACHE_HOME=str(home / ".cache"),
+               XDG_CONFIG_HOME=str(home / ".config"), PYTHONUNBUFFERED="1")
+    if numba_cache is not None:
+        env["NUMBA_CACHE_DIR"] = str(numba_cache)
+    return env
+
+
+def isolated_site(tmp: Path) -> Path:
+    """A site folder with the venv's packages except those the extension must bundle.
+
+    Run with `python -S` and this folder on sys.path, Blender can only find numba, embreex,
+    OpenEXR and the renderer in the extension's own wheels.
+    """
+    site = tmp / "site"
+    site.mkdir(parents=True, exist_ok=True)
+    venv_site = Path(np.__file__).resolve().parents[1]
+    for entry in venv_site.iterdir():
+        lowered = entry.name.lower()
+        if entry.name.endswith(".pth") or entry.name == "__pycache__":
+            continue
+        if any(lowered.startswith(name.lower()) for name in BUNDLED_MODULES):
+            continue
+        (site / entry.name).symlink_to(entry)
+    return site
+
+
+def run_blender(body: str, tmp: Path, *, timeout: float = 900.0, numba_cache: Path | None = None,
+                dev_paths: bool = True, site: Path | None = None) -> BlenderRun:
+    """Run `body` (Python source defining `main() -> dict`) with bpy in a subprocess.
+
+    dev_paths: put the repository, tests/ and examples/ on sys.path (the add-on from this
+    checkout). site: run isolated (python -S) with only this site folder for packages.
+    """
+    tmp.mkdir(parents=True, exist_ok=True)
+    paths = [str(TESTS), str(EXAMPLES), str(REPO)] if dev_paths else [str(TESTS)]
+    if site is not None:
+        paths.append(str(site))
+    script = tmp / "blender_script.py"
+    script.write_text(PRELUDE.format(paths=paths) + textwrap.dedent(body) + EPILOGUE)
+    result_file = tmp / "result.json"
+    env = blender_environment(tmp, numba_cache)
+    env["HAZE_TEST_RESULT"] = str(result_file)
+    command = [PYTHON, "-S", str(script)] if site is not None else [PYTHON, str(script)]
+    process = subprocess.run(command, cwd=tmp, env=env, capture_output=True, text=True, timeout=timeout)
+    result = json.loads(result_file.read_text()) if result_file.is_file() else {}
+    return BlenderRun(process.returncode, process.stdout, process.stderr, result)
+
+
+# ------------------------------------------------------------------------------ statistics
+
+
+@dataclass
+class Comparison:
+    """Haze against a reference renderer, from K independent renders of each."""
+
+    relative_mean_difference: np.ndarray  # (3,) (mean_haze - mean_ref) / mean_ref per channel
+    relative_mean_sigma: np.ndarray  # (3,) standard deviation of that difference (noise)
+    block_z: np.ndarray  # (blocks_y, blocks_x, 3) z-scores of block-mean differences
+    chi_square: float  # sum of squared z over blocks and channels
+    degrees: int  # number of z-scores in it
+
+    def summary(self) -> str:
+        worst = float(np.nanmax(np.abs(self.block_z))) if self.block_z.size else 0.0
+        return (f"relative mean difference {np.round(100 * self.relative_mean_difference, 3)} % "
+                f"(noise sigma {np.round(100 * self.relative_mean_sigma, 3)} %), "
+                f"max |block z| {worst:.2f}, chi2 {self.chi_square:.1f} for {self.degrees} blocks")
+
+
+def block_sums(images: np.ndarray, block: int) -> np.ndarray:
+    """(K, H, W, C) -> (K, H/block, W/block, C) sums over square blocks."""
+    k, h, w, c = images.shape
+    return images.reshape(k, h // block, block, w // block, block, c).sum(axis=(2, 4))
+
+
+def mean_and_variance(images: np.ndarray, block: int) -> tuple[np.ndarray, ...]:
+    """Block means of the average of K renders and their variances.
+
+    Pixels are independent (box filter of width 1: each sample lands in one pixel), so the
+    variance of a block mean is the sum of its pixels' variances over block^2 squared; each
+    pixel's variance is estimated from the spread of the K independent renders.
+    """
+    k = images.shape[0]
+    pixel_variance = images.var(axis=0, ddof=1) / k  # variance of the K-average, per pixel
+    means = block_sums(images.mean(axis=0)[None], block)[0] / block**2
+    variances = block_sums(pixel_variance[None], block)[0] / block**4
+    image_mean = images.mean(axis=(0, 1, 2))
+    image_variance = pixel_variance.sum(axis=(0, 1)) / (images.shape[1] * images.shape[2]) ** 2
+    return means, variances, image_mean, image_variance
+
+
+def compare_images(haze: np.ndarray, reference: np.ndarray, block: int = 8) -> Comparison:
+    """Statistical comparison of (K, H, W, 3) stacks of independent renders of one scene."""
+    h_mean, h_var, h_image, h_image_var = mean_and_variance(np.asarray(haze, np.float64), block)
+    r_mean, r_var, r_image, r_image_var = mean_and_variance(np.asarray(reference, np.float64), block)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        relative = (h_image - r_image) / r_image
+        sigma = np.sqrt(h_image_var + r_image_var) / r_image
+        z = (h_mean - r_mean) / np.sqrt(h_var + r_var)
+    # Blocks without any light in either renderer (both exactly zero, no variance) carry no test.
+    both_dark = (h_var + r_var == 0.0) & (h_mean == r_mean)
+    z = np.where(both_dark, 0.0, z)
+    counted = int(np.count_nonzero(~both_dark))
+    return Comparison(relative, sigma, z, float(np.nansum(np.where(both_dark, 0.0, z**2))), counted)
+
+
+def z_threshold(tests: int, family_alpha: float = 1e-3) -> float:
+    """Two-sided normal threshold with a Bonferroni correction for `tests` z-scores."""
+    from statistics import NormalDist
+
+    return NormalDist().inv_cdf(1.0 - family_alpha / (2.0 * tests))
+
+
+def chi_square_threshold(degrees: int, alpha: float = 1e-3) -> float:
+    """Upper quantile of chi-square(degrees) by the Wilson-Hilferty approximation."""
+    from statistics import NormalDist
+
+    z = NormalDist().inv_cdf(1.0 - alpha)
+    d = float(degrees)
+    return d * (1.0 - 2.0 / (9.0 * d) + z * math.sqrt(2.0 / (9.0 * d))) ** 3
+
+
+def assert_agree(comparison: Comparison, mean_tolerance: float = 0.01) -> None:
+    """Image means within `mean_tolerance` and block means within noise.
+
+    The mean test is meaningful only if noise cannot fake a 1 % difference: its sigma must be
+    at most a third of the tolerance (a 3-sigma margin), otherwise the test setup is wrong.
+    """
+    assert np.all(comparison.relative_mean_sigma <= mean_tolerance / 3.0), (
+        "too noisy for a 1% mean comparison: " + comparison.summary())
+    assert np.all(np.abs(comparison.relative_mean_difference) <= mean_tolerance), comparison.summary()
+    limit = z_threshold(max(comparison.degrees, 1))
+    worst = float(np.max(np.abs(comparison.block_z)))
+    assert worst <= limit, f"block z > {limit:.2f}: " + comparison.summary()
+    chi_limit = chi_square_threshold(max(comparison.degrees, 1))
+    assert comparison.chi_square <= chi_limit, f"chi2 > {chi_limit:.1f}: " + comparison.summary()
+
+
+# ------------------------------------------------------------------------------ Blender side
+
+
+def enable_dev_addon() -> None:
+    """Register the add-on of this checkout (as when enabled from a clone)."""
+    import bpy
+
+    if hasattr(bpy.types.Scene, "haze"):
+        return
+    import addon
+
+    addon.register()
+
+
+def configure_cycles(scene, samples: int, max_bounces: int, seed: int, threads: int = 2) -> None:
+    """Cycles set up as an unbiased reference with Haze's conventions.
+
+    Same bounce limit for every kind of bounce (volume_bounces too: its default 0 would
+    drop multiple scattering), box pixel filter of width 1, no denoising, no clamping, no
+    glossy blur, no light threshold, no adaptive sampling.
+    """
+    scene.render.engine = "CYCLES"
+    cycles = scene.cycles
+    cycles.device = "CPU"
+    cycles.samples = samples
+    cycles.seed = seed
+    cycles.use_animated_seed = False
+    cycles.use_adaptive_sampling = False
+    cycles.use_denoising = False
+    cycles.max_bounces = max_bounces
+    for name in ("diffuse_bounces", "glossy_bounces", "transmission_bounces", "volume_bounces"):
+        setattr(cycles, name, max_bounces)
+    cycles.transparent_max_bounces = 64
+    cycles.sample_clamp_direct = 0.0
+    cycles.sample_clamp_indirect = 0.0
+    cycles.blur_glossy = 0.0
+    cycles.caustics_reflective = True
+    cycles.caustics_refractive = True
+    cycles.light_sampling_threshold = 0.0
+    cycles.pixel_filter_type = "BOX"
+    cycles.filter_width = 1.0
+    scene.render.film_transparent = False
+    scene.render.threads_mode = "FIXED"
+    scene.render.threads = threads
+
+
+def configure_haze(scene, samples: int, max_bounces: int, seed: int, workers: int = 1) -> None:
+    scene.render.engine = "HAZE"
+    scene.haze.samples = samples
+    scene.haze.max_bounces = max_bounces
+    scene.haze.seed = seed
+    scene.haze.workers = workers
+    scene.haze.time_limit = 0.0
+    scene.haze.target_error = 0.0
+
+
+def render_exr(scene, path: str) -> str:
+    """Render the scene with its current engine into a 32-bit float EXR (linear, lossless)."""
+    import bpy
+
+    settings = scene.render.image_settings
+    settings.file_format = "OPEN_EXR"
+    settings.color_depth = "32"
+    settings.exr_codec = "ZIP"
+    settings.color_mode = "RGBA"
+    scene.render.filepath = path
+    bpy.ops.render.render(write_still=True)
+    return path
+
+
+def render_both(scene, out_dir: str, runs: int, cycles_samples: int, haze_samples: int,
+                max_bounces: int) -> dict:
+    """K independent renders (seeds 1..K) with Cycles and with Haze: their EXR paths."""
+    paths: dict[str, list[str]] = {"cycles": [], "haze": []}
+    for run in range(runs):
+        configure_cycles(scene, cycles_samples, max_bounces, seed=run + 1)
+        paths["cycles"].append(render_exr(scene, f"{out_dir}/cycles_{run}.exr"))
+    for run in range(runs):
+        configure_haze(scene, haze_samples, max_bounces, seed=run + 1)
+        paths["haze"].append(render_exr(scene, f"{out_dir}/haze_{run}.exr"))
+    return paths
+
+
+def new_object(name: str, vertices, faces, material=None):
+    """A mesh object from vertex and face lists, linked to the scene."""
+    import bpy
+
+    mesh = bpy.data.meshes.new(name)
+    mesh.from_pydata([tuple(v) for v in vertices], [], [tuple(f) for f in faces])
+    if material is not None:
+        mesh.materials.append(material)
+    obj = bpy.data.objects.new(name, mesh)
+    bpy.context.scene.collection.objects.link(obj)
+    return obj
+
+
+def uv_sphere(name: str, center, radius: float, material, rings: int = 24, segments: int = 48):
+    """A closed, smooth-shaded UV sphere with outward normals."""
+    vertices = [(center[0], center[1], center[2] + radius)]
+    for i in range(1, rings):
+        theta = math.pi * i / rings
+        for j in range(segments):
+            phi = 2.0 * math.pi * j / segments
+            vertices.append((center[0] + radius * math.sin(theta) * math.cos(phi),
+                             center[1] + radius * math.sin(theta) * math.sin(phi),
+                             center[2] + radius * math.cos(theta)))
+    vertices.append((center[0], center[1], center[2] - radius))
+    bottom = len(vertices) - 1
+    faces = [(0, 1 + j, 1 + (j + 1) % segments) for j in range(segments)]
+    for i in range(rings - 2):
+        a, b = 1 + i * segments, 1 + (i + 1) * segments
+        faces += [(a + j, b + j, b + (j + 1) % segments, a + (j + 1) % segments) for j in range(segments)]
+    last = 1 + (rings - 2) * segments
+    faces += [(last + (j + 1) % segments, last + j, bottom) for j in range(segments)]
+    obj = new_object(name, vertices, faces, material)
+    obj.data.shade_smooth()
+    return obj
+
+
+def floor_plane(name: str, half: float, material, z: float = 0.0):
+    return new_object(name, [(-half, -half, z), (half, -half, z), (half, half, z), (-half, half, z)],
+                      [(0, 1, 2, 3)], material)
+
+
+def principled_material(name: str, **inputs):
+    """A Principled BSDF material; keyword names are input names with spaces as underscores."""
+    import bpy
+
+    material = bpy.data.materials.new(name)
+    material.use_nodes = True
+    bsdf = material.node_tree.nodes["Principled BSDF"]
+    for key, value in inputs.items():
+        if key == "distribution":
+            bsdf.distribution = value
+            continue
+        socket = bsdf.inputs[key.replace("_", " ")]
+        socket.default_value = (*value, 1.0) if isinstance(value, tuple) and len(value) == 3 else value
+    return material
+
+
+def add_light(kind: str, name: str, location, rotation_deg=(0.0, 0.0, 0.0), **settings):
+    import bpy
+
+    data = bpy.data.lights.new(name, kind)
+    for key, value in settings.items():
+        setattr(data, key, value)
+    obj = bpy.data.objects.new(name, data)
+    obj.location = location
+    obj.rotation_euler = tuple(math.radians(a) for a in rotation_deg)
+    bpy.context.scene.collection.objects.link(obj)
+    return obj
+
+
+def world_color(scene, color, strength: float = 1.0) -> None:
+    import bpy
+
+    world = bpy.data.worlds.new("World")
+    world.use_nodes = True
+    background = world.node_tree.nodes["Background"]
+    background.inputs["Color"].default_value = (*color, 1.0)
+    background.inputs["Strength"].default_value = strength
+    scene.world = world
