@@ -422,7 +422,10 @@ def test_area_lights_are_one_sided_emitters_with_cycles_radiance(exported):
     _, square, area, normals = area_emitter(scene, "Square")
     assert area == pytest.approx(1.0, rel=1e-6)  # 2 m square scaled by 0.5
     assert square.emission == pytest.approx((40.0 / math.pi,) * 3, rel=1e-6)  # P / (pi A)
-    assert square.emission_sides == "front" and square.lobes == []  # a Cycles light lets rays through
+    assert square.emission_sides == "front"
+    # A Cycles light lets rays through: a clear transparent lobe on both faces.
+    lobes = [(lobe.kind, lobe.color, lobe.sides) for lobe in square.lobes]
+    assert lobes == [("transparent", (1, 1, 1), "both")]
     assert np.all(normals[:, 2] < 0)  # emits along the light's -Z
     _, disk, disk_area, _ = area_emitter(scene, "Disk")
     assert disk_area == pytest.approx(math.pi / 4.0, rel=1e-6)

@@ -6,8 +6,9 @@ Light power P (watts) times colour times 2^exposure (times the blackbody colour 
 * point/spot: radiant intensity P / (4 pi) W/sr, spot cone and blend as in Blender;
 * sun: irradiance = strength (W/m^2) facing the sun, with its angular diameter;
 * area: an emissive quad or disk facing the light's -Z, radiance P / (pi x area) with
-  "normalize" on (P / pi per square metre without). Like a Cycles light it is invisible
-  from behind and lets rays through (no lobes: an emitting interface).
+  "normalize" on (P / pi per square metre without). A Cycles light is not a surface: rays
+  pass through it (kernel/integrator/shade_light.h), so the emitter gets a clear transparent
+  lobe; it emits only from its front and shows nothing from behind.
 """
 
 from __future__ import annotations
@@ -16,7 +17,7 @@ import math
 
 import numpy as np
 
-from renderer.scene import Material, Mesh, PointLight, SpotLight, SunLight
+from renderer.scene import Lobe, Material, Mesh, PointLight, SpotLight, SunLight
 
 from .messages import Messages, object_subject
 from .nodes import rgb
@@ -110,6 +111,8 @@ def area_light(light, matrix: np.ndarray, name: str, messages: Messages) -> tupl
     triangles = fan_triangles(len(outline))
     if np.linalg.det(linear) < 0.0:
         triangles = triangles[:, ::-1].copy()
-    material = Material(f"{name} (area light)", lobes=[], emission=rgb(radiance), emission_sides="front")
+    see_through = [Lobe("transparent", color=(1.0, 1.0, 1.0), sides="both")]
+    material = Material(f"{name} (area light)", lobes=see_through, emission=rgb(radiance),
+                        emission_sides="front")
     mesh = Mesh(f"{name} (area light)", vertices, triangles, [material.name])
     return mesh, material
