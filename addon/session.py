@@ -24,6 +24,7 @@ from .display import ResultBuffer, write_result
 from .export.messages import ExportError
 
 PUSH_INTERVAL = 1.0  # seconds between image updates shown to the user
+MAX_DISPLAY_SHARE = 0.02  # pushes may take at most this share of the render time
 MAX_REPORTED_WARNINGS = 20  # more go to the console only, so the UI is not flooded
 
 
@@ -197,14 +198,18 @@ class RenderSession:
 
     def _consume(self, frames, result) -> None:
         last_push = time.monotonic()
+        interval = PUSH_INTERVAL
         time_limit = float(self.settings.time_limit)
         for progress in passes_without_main(frames):
             self.latest = progress
             self.engine.update_progress(progress_fraction(progress, time_limit))
             self.engine.update_stats("", "Haze | " + stats_text(progress, time_limit))
-            if time.monotonic() - last_push >= PUSH_INTERVAL:
+            if time.monotonic() - last_push >= interval:
+                started = time.monotonic()
                 self._push(result)
                 last_push = time.monotonic()
+                # Huge images push less often, so showing them never costs over 2 % of the time.
+                interval = max(PUSH_INTERVAL, (last_push - started) / MAX_DISPLAY_SHARE)
             if self.engine.test_break():
                 self.cancelled = True
                 return
