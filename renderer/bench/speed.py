@@ -1,4 +1,4 @@
-"""Speed benchmark: `python -m renderer.bench` (or `make bench`). Prints figures; asserts nothing.
+"""Speed benchmark: `python -m renderer.bench speed` (or `make bench`). Prints figures; asserts nothing.
 
 For each example at 128x128 and 256x256: M samples/s on one core, path vertices/s, the
 share of time spent inside Embree, and the speed-up from two worker processes. Also the
@@ -13,7 +13,7 @@ import subprocess
 import sys
 import time
 
-from .film import Film
+from ..film import Film
 
 
 def _scenes(size: int):
@@ -48,8 +48,8 @@ class _EmbreeTimer:
 
 
 def one_core(scene, spp: int) -> dict:
-    from .compile import compile_scene
-    from .integrator.wavefront import Tracer
+    from ..compile import compile_scene
+    from ..integrator.wavefront import Tracer
 
     cs = compile_scene(scene)
     tracer = Tracer(cs, scene.integrator)
@@ -67,7 +67,7 @@ def one_core(scene, spp: int) -> dict:
 
 def two_processes(scene, spp: int) -> float:
     """Samples/s with 2 worker processes, after their start-up (a warm-up pass), in M/s."""
-    from .render import render_progressive
+    from ..render import render_progressive
 
     scene.integrator.spp = spp + 1
     t_first = None
@@ -95,7 +95,7 @@ def startup(cold: bool) -> float:
 
 
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(prog="python -m renderer.bench")
+    p = argparse.ArgumentParser(prog="python -m renderer.bench speed")
     p.add_argument("--spp", type=int, default=16, help="samples per pixel per measurement")
     p.add_argument("--sizes", type=int, nargs="+", default=[128, 256])
     p.add_argument("--no-startup", action="store_true")

@@ -1,0 +1,17 @@
+"""`python -m renderer.bench [speed] [options]`: the speed benchmark (default).
+
+Other studies register here as subcommands (see COMMANDS)."""
+
+import importlib
+import sys
+
+COMMANDS = {"speed": "renderer.bench.speed"}
+
+
+def main(argv: list[str]) -> int:
+    name = argv[0] if argv and argv[0] in COMMANDS else "speed"
+    rest = argv[1:] if argv and argv[0] in COMMANDS else argv
+    return importlib.import_module(COMMANDS[name]).main(rest)
+
+
+raise SystemExit(main(sys.argv[1:]))
