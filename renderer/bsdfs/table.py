@@ -11,9 +11,10 @@ _SIDES = {"front": SIDE_FRONT, "back": SIDE_BACK, "both": SIDE_FRONT | SIDE_BACK
 
 
 def build_material_table(materials: list[Material]) -> tuple:
-    """(mat_lobe_start, mat_lobe_count, lobe_kind, lobe_weight, lobe_color, lobe_rough,
-    lobe_ior, lobe_sides): contiguous int32/float32 arrays, material m owning lobes
-    start[m] .. start[m] + count[m] - 1. Empty inputs give valid zero-length arrays."""
+    """(mats int32 (M, 2), lobes float32 (L, 10)): material m owns lobes
+    mats[m, 0] .. mats[m, 0] + mats[m, 1] - 1; lobe columns as in renderer.bsdfs.material
+    (kind, weight rgb, color rgb, roughness, ior, sides). Empty inputs give valid
+    zero-length arrays."""
     lobes = [lobe for mat in materials for lobe in mat.lobes]
     counts = np.array([len(mat.lobes) for mat in materials], dtype=np.int32)
     starts = np.zeros(len(materials), dtype=np.int32)
@@ -24,13 +25,15 @@ def build_material_table(materials: list[Material]) -> tuple:
             raise ValueError(f"unknown lobe kind {lobe.kind!r}; expected one of {sorted(LOBE_KINDS)}")
         if lobe.sides not in _SIDES:
             raise ValueError(f"unknown lobe sides {lobe.sides!r}; expected one of {sorted(_SIDES)}")
-    return (
-        np.ascontiguousarray(starts, dtype=np.int32),
-        np.ascontiguousarray(counts.reshape(len(materials)), dtype=np.int32),
-        np.array([LOBE_KINDS[lobe.kind] for lobe in lobes], dtype=np.int32).reshape(len(lobes)),
-        np.array([lobe.weight for lobe in lobes], dtype=np.float32).reshape(len(lobes), 3),
-        np.array([lobe.color for lobe in lobes], dtype=np.float32).reshape(len(lobes), 3),
-        np.array([lobe.roughness for lobe in lobes], dtype=np.float32).reshape(len(lobes)),
-        np.array([lobe.ior for lobe in lobes], dtype=np.float32).reshape(len(lobes)),
-        np.array([_SIDES[lobe.sides] for lobe in lobes], dtype=np.int32).reshape(len(lobes)),
-    )
+    mats = np.zeros((len(materials), 2), np.int32)
+    mats[:, 0] = starts
+    mats[:, 1] = counts
+    table = np.zeros((len(lobes), 10), np.float32)
+    for j, lobe in enumerate(lobes):
+        table[j, 0] = LOBE_KINDS[lobe.kind]
+        table[j, 1:4] = lobe.weight
+        table[j, 4:7] = lobe.color
+        table[j, 7] = lobe.roughness
+        table[j, 8] = lobe.ior
+        table[j, 9] = _SIDES[lobe.sides]
+    return mats, table
