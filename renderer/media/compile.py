@@ -1,33 +1,35 @@
 """Flatten a list of Medium descriptions into the arrays the media kernels read.
 
-MediaTable is a NamedTuple of contiguous numpy arrays; numba passes it to @njit kernels as
-one argument (a tuple of array views, fine with cache=True). M = number of media; a medium
-id is its index in the list. Every array has a leading M axis, except the flat pools
-`grid_data` and `maj_data` that the per-medium offsets index.
+MediaTable is a NamedTuple of four contiguous numpy arrays; numba passes it to @njit
+kernels as one argument (fine with cache=True). It is deliberately a few wide arrays
+rather than one array per field: every non-inlined call passes each array of the tuple,
+so a 15-array table made a trilinear lookup ~5x slower. M = number of media; a medium id
+is its index in the list.
 
-    kind          (M,)      int32    MEDIUM_HOMOGENEOUS (0) or MEDIUM_GRID (1)
-    sigma_a       (M, 3)    float32  absorption per world unit, already times `scale`
-    sigma_s       (M, 3)    float32  scattering per world unit, already times `scale`
-    g             (M,)      float32  Henyey-Greenstein asymmetry
-    emission      (M, 3)    float32  emission per unit length (see renderer.media.emission)
-    has_emission  (M,)      int32    1 if the medium can emit anywhere (else emission is skipped)
-    blackbody     (M,)      float32  blackbody intensity (used only with a temperature grid)
-    to_unit       (M, 3, 4) float32  world -> grid unit cube affine [A | b]: u = A x + b
-                                     (identity for homogeneous media)
-    grid_offset   (M, 3)    int64    start of the density / flame / temperature grid in
-                                     grid_data, -1 when absent (GRID_DENSITY, GRID_FLAME,
-                                     GRID_TEMPERATURE index the second axis)
-    grid_dims     (M, 3, 3) int32    (nx, ny, nz) of those grids; voxel (i, j, k) is
-                                     grid_data[offset + (k * ny + j) * nx + i]
-    grid_data     (N,)      float32  every grid, x fastest
-    maj_offset    (M,)      int64    start of the medium's coarse majorant grid in maj_data
-                                     (-1 for homogeneous media)
-    maj_dims      (M, 3)    int32    majorant cells (cx, cy, cz) along unit-cube x, y, z
-    maj_data      (K, 2)    float32  per cell: [max density that trilinear interpolation can
-                                     reach inside the cell, 1.0 if the cell can emit else 0.0]
-    emission_rate (M,)      float32  tentative-collision rate (per world unit) guaranteed in
-                                     emitting cells of a grid, so that emission where the
-                                     density is ~0 is still estimated (see tracking.py)
+    params    (M, P_SIZE) float32  per-medium floats, columns:
+        P_SIGMA_A + c      absorption per world unit of channel c, already times `scale`
+        P_SIGMA_S + c      scattering per world unit, already times `scale`
+        P_G                Henyey-Greenstein asymmetry
+        P_EMISSION + c     emission per unit length (see renderer.media.emission)
+        P_BLACKBODY        blackbody intensity (used only with a temperature grid)
+        P_EMISSION_RATE    tentative-collision rate (per world unit) guaranteed in emitting
+                           cells of a grid, so that emission where the density is ~0 is
+                           still estimated (see tracking.py)
+        P_TO_UNIT + 4 r + k  world -> grid unit cube affine [A | b], u = A x + b, row r
+                           (identity for homogeneous media)
+    index     (M, I_SIZE) int64    per-medium integers, columns:
+        I_KIND             MEDIUM_HOMOGENEOUS (0) or MEDIUM_GRID (1)
+        I_HAS_EMISSION     1 if the medium can emit anywhere (else emission costs nothing)
+        I_GRID_OFFSET + w  start of grid w (GRID_DENSITY, GRID_FLAME, GRID_TEMPERATURE) in
+                           grid_data, -1 when absent
+        I_GRID_DIMS + 3 w + a   size of grid w along axis a (x, y, z); voxel (i, j, k) is
+                           grid_data[offset + (k * ny + j) * nx + i]
+        I_MAJ_OFFSET       first cell of the medium's majorant grid in maj_data (-1 if none)
+        I_MAJ_DIMS + a     majorant cells along unit-cube axis a
+    grid_data (N,)        float32  every grid, x fastest
+    maj_data  (K, 2)      float32  per majorant cell (x fastest): [max density that trilinear
+                                   interpolation can reach inside the cell, 1.0 if the cell
+                                   can emit else 0.0]
 
 A homogeneous medium has density 1 everywhere: the medium stack says where it applies.
 """
@@ -58,22 +60,29 @@ MAJ_MAX_CELLS = 64
 EMISSION_COLLISIONS_PER_CELL = 2.0
 
 
+P_SIGMA_A = 0
+P_SIGMA_S = 3
+P_G = 6
+P_EMISSION = 7
+P_BLACKBODY = 10
+P_EMISSION_RATE = 11
+P_TO_UNIT = 12
+P_SIZE = 24
+
+I_KIND = 0
+I_HAS_EMISSION = 1
+I_GRID_OFFSET = 2
+I_GRID_DIMS = 5
+I_MAJ_OFFSET = 14
+I_MAJ_DIMS = 15
+I_SIZE = 18
+
+
 class MediaTable(NamedTuple):
-    kind: np.ndarray
-    sigma_a: np.ndarray
-    sigma_s: np.ndarray
-    g: np.ndarray
-    emission: np.ndarray
-    has_emission: np.ndarray
-    blackbody: np.ndarray
-    to_unit: np.ndarray
-    grid_offset: np.ndarray
-    grid_dims: np.ndarray
+    params: np.ndarray
+    index: np.ndarray
     grid_data: np.ndarray
-    maj_offset: np.ndarray
-    maj_dims: np.ndarray
     maj_data: np.ndarray
-    emission_rate: np.ndarray
 
 
 def compile_media(media: list[Medium], use_majorant_grid: bool = True) -> MediaTable:
@@ -141,11 +150,24 @@ def compile_media(media: list[Medium], use_majorant_grid: bool = True) -> MediaT
 
     grid_data = np.concatenate(grids) if grids else np.zeros(1, np.float32)
     maj_data = np.concatenate(majs) if majs else np.zeros((1, 2), np.float32)
+    params = np.zeros((m, P_SIZE), np.float32)
+    params[:, P_SIGMA_A : P_SIGMA_A + 3] = sigma_a
+    params[:, P_SIGMA_S : P_SIGMA_S + 3] = sigma_s
+    params[:, P_G] = g
+    params[:, P_EMISSION : P_EMISSION + 3] = emission
+    params[:, P_BLACKBODY] = blackbody
+    params[:, P_EMISSION_RATE] = emission_rate
+    params[:, P_TO_UNIT : P_TO_UNIT + 12] = to_unit.reshape(m, 12)
+    index = np.zeros((m, I_SIZE), np.int64)
+    index[:, I_KIND] = kind
+    index[:, I_HAS_EMISSION] = has_emission
+    index[:, I_GRID_OFFSET : I_GRID_OFFSET + 3] = grid_offset
+    index[:, I_GRID_DIMS : I_GRID_DIMS + 9] = grid_dims.reshape(m, 9)
+    index[:, I_MAJ_OFFSET] = maj_offset
+    index[:, I_MAJ_DIMS : I_MAJ_DIMS + 3] = maj_dims
     return MediaTable(
-        kind, sigma_a, sigma_s, g, emission, has_emission, blackbody, to_unit, grid_offset, grid_dims,
-        np.ascontiguousarray(grid_data, np.float32), maj_offset, maj_dims,
-        np.ascontiguousarray(maj_data, np.float32), emission_rate,
-    )  # fmt: skip
+        params, index, np.ascontiguousarray(grid_data, np.float32), np.ascontiguousarray(maj_data, np.float32)
+    )
 
 
 # ------------------------------------------------------------------------------ validation

@@ -9,26 +9,29 @@ homogeneous box); outside the box every grid reads 0. Homogeneous media have den
 
 from numba import njit
 
-from renderer.media.compile import GRID_DENSITY, MEDIUM_GRID
+from renderer.media.compile import GRID_DENSITY, P_TO_UNIT
+from renderer.media.table import grid_dim, grid_offset, is_grid
 
 
 @njit(cache=True, inline="always")
 def to_unit_point(mt, m, p):
-    a = mt.to_unit[m]
+    a = mt.params[m]
+    k = P_TO_UNIT
     return (
-        a[0, 0] * p[0] + a[0, 1] * p[1] + a[0, 2] * p[2] + a[0, 3],
-        a[1, 0] * p[0] + a[1, 1] * p[1] + a[1, 2] * p[2] + a[1, 3],
-        a[2, 0] * p[0] + a[2, 1] * p[1] + a[2, 2] * p[2] + a[2, 3],
+        a[k + 0] * p[0] + a[k + 1] * p[1] + a[k + 2] * p[2] + a[k + 3],
+        a[k + 4] * p[0] + a[k + 5] * p[1] + a[k + 6] * p[2] + a[k + 7],
+        a[k + 8] * p[0] + a[k + 9] * p[1] + a[k + 10] * p[2] + a[k + 11],
     )
 
 
 @njit(cache=True, inline="always")
 def to_unit_vector(mt, m, v):
-    a = mt.to_unit[m]
+    a = mt.params[m]
+    k = P_TO_UNIT
     return (
-        a[0, 0] * v[0] + a[0, 1] * v[1] + a[0, 2] * v[2],
-        a[1, 0] * v[0] + a[1, 1] * v[1] + a[1, 2] * v[2],
-        a[2, 0] * v[0] + a[2, 1] * v[1] + a[2, 2] * v[2],
+        a[k + 0] * v[0] + a[k + 1] * v[1] + a[k + 2] * v[2],
+        a[k + 4] * v[0] + a[k + 5] * v[1] + a[k + 6] * v[2],
+        a[k + 8] * v[0] + a[k + 9] * v[1] + a[k + 10] * v[2],
     )
 
 
@@ -44,15 +47,14 @@ def _axis(x, n):
     return i, f - i
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def grid_lookup(mt, m, which, u):
     """Trilinear value of grid `which` of medium m at unit-cube point u (0 outside)."""
     if not (0.0 <= u[0] <= 1.0 and 0.0 <= u[1] <= 1.0 and 0.0 <= u[2] <= 1.0):
         return 0.0
-    off = mt.grid_offset[m, which]
-    nx = mt.grid_dims[m, which, 0]
-    ny = mt.grid_dims[m, which, 1]
-    nz = mt.grid_dims[m, which, 2]
+    nx = grid_dim(mt, m, which, 0)
+    ny = grid_dim(mt, m, which, 1)
+    nz = grid_dim(mt, m, which, 2)
     i, fx = _axis(u[0], nx)
     j, fy = _axis(u[1], ny)
     k, fz = _axis(u[2], nz)
@@ -62,7 +64,7 @@ def grid_lookup(mt, m, which, u):
     dj = nx if j + 1 < ny else 0
     dk = nx * ny if k + 1 < nz else 0
     data = mt.grid_data
-    b = off + (k * ny + j) * nx + i
+    b = grid_offset(mt, m, which) + (k * ny + j) * nx + i
     c00 = data[b] * (1.0 - fx) + data[b + di] * fx
     c10 = data[b + dj] * (1.0 - fx) + data[b + dj + di] * fx
     c01 = data[b + dk] * (1.0 - fx) + data[b + dk + di] * fx
@@ -72,9 +74,9 @@ def grid_lookup(mt, m, which, u):
     return c0 * (1.0 - fz) + c1 * fz
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def medium_density(mt, m, p):
     """Density of medium m at world point p: 1 for homogeneous media."""
-    if mt.kind[m] != MEDIUM_GRID:
+    if not is_grid(mt, m):
         return 1.0
     return grid_lookup(mt, m, GRID_DENSITY, to_unit_point(mt, m, p))

@@ -10,6 +10,7 @@ from numba import njit
 
 from renderer.media.spectral import pick_channel
 from renderer.media.stack import EMPTY, MAX_STACK
+from renderer.media.table import emission, emits, sigma_a, sigma_s
 
 
 @njit(cache=True)
@@ -21,12 +22,14 @@ def stack_sigma(mt, stack):
         m = stack[i]
         if m == EMPTY:
             break
-        a0 += mt.sigma_a[m, 0]
-        a1 += mt.sigma_a[m, 1]
-        a2 += mt.sigma_a[m, 2]
-        s0 += mt.sigma_s[m, 0]
-        s1 += mt.sigma_s[m, 1]
-        s2 += mt.sigma_s[m, 2]
+        a = sigma_a(mt, m)
+        s = sigma_s(mt, m)
+        a0 += a[0]
+        a1 += a[1]
+        a2 += a[2]
+        s0 += s[0]
+        s1 += s[1]
+        s2 += s[2]
     return (a0, a1, a2), (s0, s1, s2)
 
 
@@ -38,10 +41,11 @@ def stack_constant_emission(mt, stack):
         m = stack[i]
         if m == EMPTY:
             break
-        if mt.has_emission[m] != 0:
-            e0 += mt.emission[m, 0]
-            e1 += mt.emission[m, 1]
-            e2 += mt.emission[m, 2]
+        if emits(mt, m):
+            e = emission(mt, m)
+            e0 += e[0]
+            e1 += e[1]
+            e2 += e[2]
     return (e0, e1, e2)
 
 

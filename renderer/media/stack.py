@@ -9,7 +9,7 @@ one occurrence.
 
 from numba import njit
 
-from renderer.media.compile import MEDIUM_GRID
+from renderer.media.table import emits, is_grid
 
 MAX_STACK = 4
 EMPTY = -1
@@ -34,7 +34,7 @@ def stack_has_grid(mt, stack):
         m = stack[i]
         if m == EMPTY:
             break
-        if mt.kind[m] == MEDIUM_GRID:
+        if is_grid(mt, m):
             return True
     return False
 
@@ -45,7 +45,7 @@ def stack_has_emission(mt, stack):
         m = stack[i]
         if m == EMPTY:
             break
-        if mt.has_emission[m] != 0:
+        if emits(mt, m):
             return True
     return False
 

@@ -11,12 +11,12 @@ chromatic entries of different g overlap they differ, which is why sampling retu
 weight f / pdf per channel instead of assuming 1.
 """
 
-import numpy as np
 from numba import njit
 
 from renderer.kernels.vecmath import dot, luminance
 from renderer.media.grid import medium_density
 from renderer.media.stack import EMPTY, MAX_STACK
+from renderer.media.table import phase_g, sigma_s
 from renderer.phase.hg import hg_eval, hg_sample
 
 
@@ -24,7 +24,7 @@ from renderer.phase.hg import hg_eval, hg_sample
 def _mixture(mt, stack, p, cos_theta):
     """(f3, pdf) of the stack's phase mixture at p for cos_theta = dot(d, wi)."""
     if stack[1] == EMPTY:  # one entry: no density lookups needed
-        v = hg_eval(np.float64(mt.g[stack[0]]), cos_theta)
+        v = hg_eval(phase_g(mt, stack[0]), cos_theta)
         return (v, v, v), v
     f0 = f1 = f2 = 0.0
     n0 = n1 = n2 = 0.0
@@ -35,8 +35,9 @@ def _mixture(mt, stack, p, cos_theta):
         if m == EMPTY:
             break
         rho = medium_density(mt, m, p)
-        s = (rho * mt.sigma_s[m, 0], rho * mt.sigma_s[m, 1], rho * mt.sigma_s[m, 2])
-        v = hg_eval(np.float64(mt.g[m]), cos_theta)
+        ss = sigma_s(mt, m)
+        s = (rho * ss[0], rho * ss[1], rho * ss[2])
+        v = hg_eval(phase_g(mt, m), cos_theta)
         w = luminance(s)
         pdf += w * v
         wsum += w
@@ -49,7 +50,7 @@ def _mixture(mt, stack, p, cos_theta):
     if wsum <= 0.0:
         # Nothing scatters here (the distance sampler gives such a vertex weight 0);
         # fall back to the first lobe so the caller still gets a valid direction and pdf.
-        v = hg_eval(np.float64(mt.g[stack[0]]), cos_theta)
+        v = hg_eval(phase_g(mt, stack[0]), cos_theta)
         return (v, v, v), v
     pdf /= wsum
     # A channel that does not scatter at p has weight 0 anyway; give it the pdf.
@@ -66,7 +67,7 @@ def _pick_entry(mt, stack, p, u):
         m = stack[i]
         if m == EMPTY:
             break
-        wsum += medium_density(mt, m, p) * luminance((mt.sigma_s[m, 0], mt.sigma_s[m, 1], mt.sigma_s[m, 2]))
+        wsum += medium_density(mt, m, p) * luminance(sigma_s(mt, m))
     if wsum <= 0.0:
         return stack[0]
     target = u * wsum
@@ -76,7 +77,7 @@ def _pick_entry(mt, stack, p, u):
         m = stack[i]
         if m == EMPTY:
             break
-        w = medium_density(mt, m, p) * luminance((mt.sigma_s[m, 0], mt.sigma_s[m, 1], mt.sigma_s[m, 2]))
+        w = medium_density(mt, m, p) * luminance(sigma_s(mt, m))
         if w > 0.0:
             last = m
             acc += w
@@ -93,7 +94,7 @@ def sample_phase(mt, stack, p, d, u_sel, u1, u2):
     chromatic entries of different g overlap); pdf is per steradian (for MIS).
     """
     m = _pick_entry(mt, stack, p, u_sel)
-    wi, pdf_i = hg_sample(np.float64(mt.g[m]), d, u1, u2)
+    wi, pdf_i = hg_sample(phase_g(mt, m), d, u1, u2)
     if stack[1] == EMPTY:
         return wi, (1.0, 1.0, 1.0), pdf_i
     f, pdf = _mixture(mt, stack, p, dot(d, wi))

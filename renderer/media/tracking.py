@@ -1,13 +1,288 @@
-"""Null-collision tracking through stacks that contain grid media (stage 2: stub)."""
+"""Null-collision tracking through medium stacks that contain grid media.
 
+The stack's majorant mu (per channel) is the sum of its entries' majorants: constant
+sigma_t for homogeneous entries, (density bound of the current coarse cell) x sigma_t for
+grid entries, walked by one DDA per grid entry (majorant.py). Where the stack emits, every
+channel's mu is raised to at least an emission rate lambda so that emission is sampled
+even where the extinction is ~0 (as Cycles raises its majorant to the emission).
+
+Spectral MIS (pbrt-v4 style, balance heuristic over the three channels' techniques).
+Technique c samples tentative collisions with rate mu_c and calls a collision real with
+probability sigma_t,c(x) / mu_c. For a sampled walk, q_c is its pdf under technique c
+(products of exp(-mu_c dt) and sigma_n,c = mu_c - sigma_t,c or sigma_t,c), kept only up
+to a common factor (renormalised every step, so it never under- or overflows). Because
+the null-scattering contribution f_k of channel k has the same factors as q_k except at
+the final event, every estimate is a ratio q_k / sum_c p_c q_c:
+
+    scattered at t:   weight_k = q_k sigma_s,k / sum_c p_c q_c sigma_t,c
+    passed to t1:     weight_k = q_k / sum_c p_c q_c
+    emission at every tentative collision x:  Le_k += E_k(x) q_k / sum_c p_c q_c mu_c
+
+Each is bounded by (albedo or E/mu) / p_k, whatever the channels' contrast (sigma_t of 0
+next to 1e6), and unbiased per channel as long as p_k > 0. Channels the caller gives
+p_k = 0 (zero throughput) get weight 0.
+
+Ratio tracking (transmittance): technique c places points as a Poisson process of rate
+mu_c; channel k's estimate is f_k / sum_c p_c pdf_c with f_k = prod sigma_n,k(x_i) exp(-int
+mu_k) and pdf_c = prod mu_c exp(-int mu_c). Russian roulette once every channel's running
+estimate is below RR_THRESHOLD keeps it unbiased and cheap in dense media.
+"""
+
+import math
+
+import numpy as np
 from numba import njit
+
+from renderer.kernels.rng import uniform
+from renderer.media.emission import stack_emission
+from renderer.media.grid import medium_density
+from renderer.media.homogeneous import optical_depth
+from renderer.media.majorant import DDA_EMITS, DDA_END, DDA_MAJ, DDA_MEDIUM, DDA_SIZE, dda_advance, dda_init
+from renderer.media.spectral import THIRD, pick_channel
+from renderer.media.stack import EMPTY, MAX_STACK, stack_has_emission
+from renderer.media.table import emission_rate, emits, is_grid, sigma_a, sigma_s, sigma_t
+
+RR_THRESHOLD = 0.1
+# Tentative collisions spent on a segment inside an emitting homogeneous entry of a grid
+# stack (its emission is constant: a few samples of the segment suffice).
+HOMOGENEOUS_EMISSION_COLLISIONS = 4.0
+# Safety net against a walk that cannot advance (t + dt == t at absurd distances).
+MAX_COLLISIONS = 10_000_000
+
+
+@njit(cache=True, inline="always")
+def _sigma_at(mt, stack, x):
+    """(sigma_a, sigma_s) of the stack at world point x: entries' density x coefficients."""
+    a0 = a1 = a2 = s0 = s1 = s2 = 0.0
+    for i in range(MAX_STACK):
+        m = stack[i]
+        if m == EMPTY:
+            break
+        rho = medium_density(mt, m, x)
+        if rho > 0.0:
+            a = sigma_a(mt, m)
+            s = sigma_s(mt, m)
+            a0 += rho * a[0]
+            a1 += rho * a[1]
+            a2 += rho * a[2]
+            s0 += rho * s[0]
+            s1 += rho * s[1]
+            s2 += rho * s[2]
+    return (a0, a1, a2), (s0, s1, s2)
+
+
+@njit(cache=True)
+def _start_walk(mt, stack, o, d, t0, rows):
+    """Start a DDA for every grid entry; return the homogeneous entries' summed sigma_t,
+    whether any homogeneous entry emits, and the number of grid walkers in `rows`."""
+    h0 = h1 = h2 = 0.0
+    hom_emits = False
+    n = 0
+    for i in range(MAX_STACK):
+        m = stack[i]
+        if m == EMPTY:
+            break
+        if is_grid(mt, m):
+            dda_init(mt, m, o, d, t0, rows[n])
+            n += 1
+        else:
+            st = sigma_t(mt, m)
+            h0 += st[0]
+            h1 += st[1]
+            h2 += st[2]
+            hom_emits = hom_emits or emits(mt, m)
+    return (h0, h1, h2), hom_emits, n
+
+
+@njit(cache=True, inline="always")
+def _piece(mt, rows, n, hom_sigma_t, hom_rate):
+    """Majorant (per channel) of the current piece and where the piece ends.
+
+    hom_rate < 0 means emission is not sampled; otherwise it is the homogeneous entries'
+    emission rate and the grid entries' rates apply in their emitting cells."""
+    mu0, mu1, mu2 = hom_sigma_t
+    end = math.inf
+    lam = hom_rate
+    for j in range(n):
+        m = int(rows[j, DDA_MEDIUM])
+        rho = rows[j, DDA_MAJ]
+        if rho > 0.0:
+            st = sigma_t(mt, m)
+            mu0 += rho * st[0]
+            mu1 += rho * st[1]
+            mu2 += rho * st[2]
+        if hom_rate >= 0.0 and rows[j, DDA_EMITS] > 0.0:
+            lam = max(lam, emission_rate(mt, m))
+        end = min(end, rows[j, DDA_END])
+    if lam > 0.0:
+        mu0 = max(mu0, lam)
+        mu1 = max(mu1, lam)
+        mu2 = max(mu2, lam)
+    return (mu0, mu1, mu2), end
+
+
+@njit(cache=True, inline="always")
+def _advance_walk(mt, rows, n, t):
+    # `while`: pieces a rounding error made empty are skipped too.
+    for j in range(n):
+        while rows[j, DDA_END] <= t:
+            dda_advance(mt, rows[j])
+
+
+@njit(cache=True, inline="always")
+def _decay(q, mu, dt):
+    """q_c * exp(-mu_c dt) per channel (0 * inf safe)."""
+    return (
+        q[0] * math.exp(-optical_depth(mu[0], dt)),
+        q[1] * math.exp(-optical_depth(mu[1], dt)),
+        q[2] * math.exp(-optical_depth(mu[2], dt)),
+    )
+
+
+@njit(cache=True, inline="always")
+def _mix(p, q):
+    return p[0] * q[0] + p[1] * q[1] + p[2] * q[2]
+
+
+@njit(cache=True, inline="always")
+def _scaled(q, s):
+    return (q[0] / s, q[1] / s, q[2] / s)
+
+
+@njit(cache=True)
+def delta_track(mt, stack, o, d, t0, t1, p, key, dim, with_emission, rows):
+    """Delta tracking with spectral MIS over [t0, t1): (t, collided, weight3, Le3, dim).
+
+    collided: a real collision at t with weight3 = q sigma_s / sum p q sigma_t (scattering;
+    for transmittance the caller treats it as 0). Otherwise t = t1 and weight3 = q / sum p q.
+    """
+    hom_sigma_t, hom_emits, n = _start_walk(mt, stack, o, d, t0, rows)
+    rate = -1.0
+    if with_emission:
+        rate = 0.0
+        if hom_emits and t1 - t0 < math.inf:
+            rate = HOMOGENEOUS_EMISSION_COLLISIONS / (t1 - t0)
+    q = (1.0 if p[0] > 0.0 else 0.0, 1.0 if p[1] > 0.0 else 0.0, 1.0 if p[2] > 0.0 else 0.0)
+    q = _scaled(q, _mix(p, q))
+    le0 = le1 = le2 = 0.0
+    c = pick_channel(p, uniform(key, dim))
+    dim += 1
+    t = t0
+    collisions = 0
+    while t < t1:
+        mu, end = _piece(mt, rows, n, hom_sigma_t, rate)
+        end = min(end, t1)
+        while True:
+            dt = math.inf
+            if mu[c] > 0.0:
+                dt = -math.log1p(-uniform(key, dim)) / mu[c]
+                dim += 1
+            if t + dt >= end or collisions >= MAX_COLLISIONS:
+                q = _decay(q, mu, end - t)
+                q = _scaled(q, _mix(p, q))
+                t = end
+                break
+            collisions += 1
+            t += dt
+            q = _decay(q, mu, dt)
+            x = (o[0] + d[0] * t, o[1] + d[1] * t, o[2] + d[2] * t)
+            sa, ss = _sigma_at(mt, stack, x)
+            st = (sa[0] + ss[0], sa[1] + ss[1], sa[2] + ss[2])
+            if rate >= 0.0:
+                e = stack_emission(mt, stack, x)
+                denom = p[0] * q[0] * mu[0] + p[1] * q[1] * mu[1] + p[2] * q[2] * mu[2]
+                le0 += e[0] * q[0] / denom
+                le1 += e[1] * q[1] / denom
+                le2 += e[2] * q[2] / denom
+            u = uniform(key, dim)
+            dim += 1
+            if u * mu[c] < st[c]:
+                denom = p[0] * q[0] * st[0] + p[1] * q[1] * st[1] + p[2] * q[2] * st[2]
+                w = (q[0] * ss[0] / denom, q[1] * ss[1] / denom, q[2] * ss[2] / denom)
+                return t, True, w, (le0, le1, le2), dim
+            # null collision: sigma_n = mu - sigma_t (>= 0 up to rounding: mu bounds sigma_t)
+            q = (
+                q[0] * max(mu[0] - st[0], 0.0),
+                q[1] * max(mu[1] - st[1], 0.0),
+                q[2] * max(mu[2] - st[2], 0.0),
+            )
+            q = _scaled(q, _mix(p, q))
+        _advance_walk(mt, rows, n, t)
+    return t1, False, q, (le0, le1, le2), dim
+
+
+@njit(cache=True)
+def ratio_track(mt, stack, o, d, t0, t1, p, key, dim, rows):
+    """Ratio tracking with spectral MIS and Russian roulette: (Tr3 estimate, dim)."""
+    hom_sigma_t, _, n = _start_walk(mt, stack, o, d, t0, rows)
+    f = (1.0, 1.0, 1.0)
+    q = (1.0, 1.0, 1.0)
+    c = pick_channel(p, uniform(key, dim))
+    dim += 1
+    t = t0
+    collisions = 0
+    while t < t1:
+        mu, end = _piece(mt, rows, n, hom_sigma_t, -1.0)
+        end = min(end, t1)
+        while True:
+            dt = math.inf
+            if mu[c] > 0.0:
+                dt = -math.log1p(-uniform(key, dim)) / mu[c]
+                dim += 1
+            if t + dt >= end or collisions >= MAX_COLLISIONS:
+                f = _decay(f, mu, end - t)
+                q = _decay(q, mu, end - t)
+                s = _mix(p, q)
+                f = _scaled(f, s)
+                q = _scaled(q, s)
+                t = end
+                break
+            collisions += 1
+            t += dt
+            x = (o[0] + d[0] * t, o[1] + d[1] * t, o[2] + d[2] * t)
+            sa, ss = _sigma_at(mt, stack, x)
+            f = _decay(f, mu, dt)
+            q = _decay(q, mu, dt)
+            f = (
+                f[0] * max(mu[0] - sa[0] - ss[0], 0.0),
+                f[1] * max(mu[1] - sa[1] - ss[1], 0.0),
+                f[2] * max(mu[2] - sa[2] - ss[2], 0.0),
+            )
+            q = (q[0] * mu[0], q[1] * mu[1], q[2] * mu[2])
+            s = _mix(p, q)
+            f = _scaled(f, s)
+            q = _scaled(q, s)
+            # Russian roulette on the running estimate f_k / sum p q (= f_k now).
+            m = max(f[0], f[1], f[2])
+            if m < RR_THRESHOLD:
+                if m <= 0.0:
+                    return (0.0, 0.0, 0.0), dim
+                survive = m / RR_THRESHOLD
+                u = uniform(key, dim)
+                dim += 1
+                if u >= survive:
+                    return (0.0, 0.0, 0.0), dim
+                f = _scaled(f, survive)
+        _advance_walk(mt, rows, n, t)
+    return f, dim
 
 
 @njit(cache=True)
 def track_free_flight(mt, stack, o, d, tmax, p, key, dim):
-    return tmax, False, (1.0, 1.0, 1.0), (0.0, 0.0, 0.0), dim
+    """sample_distance for grid stacks (see medium.sample_distance)."""
+    rows = np.empty((MAX_STACK, DDA_SIZE))
+    return delta_track(mt, stack, o, d, 0.0, tmax, p, key, dim, stack_has_emission(mt, stack), rows)
 
 
 @njit(cache=True)
 def track_transmittance(mt, stack, o, d, t0, t1, key, dim, use_delta):
-    return (1.0, 1.0, 1.0), dim
+    """transmittance for grid stacks: ratio tracking, or delta tracking with use_delta.
+    Channels are picked uniformly (a shadow ray has no throughput to follow)."""
+    rows = np.empty((MAX_STACK, DDA_SIZE))
+    p = (THIRD, THIRD, THIRD)
+    if use_delta:
+        _, collided, w, _, dim = delta_track(mt, stack, o, d, t0, t1, p, key, dim, False, rows)
+        if collided:
+            return (0.0, 0.0, 0.0), dim
+        return w, dim
+    return ratio_track(mt, stack, o, d, t0, t1, p, key, dim, rows)
