@@ -46,8 +46,8 @@ class Lobe:
       "diffuse"        Lambertian reflection, albedo `color`.
       "dielectric"     smooth glass: Fresnel reflection + refraction, `ior` = inside / outside.
       "conductor"      smooth mirror tinted by `color` (Cycles' Glossy at roughness 0).
-      "rough_conductor" GGX microfacet reflection, alpha = roughness^2, F0 = `color`
-                        (Schlick), visible-normal sampling.
+      "rough_conductor" GGX microfacet reflection, alpha = roughness^2, Fresnel = `color`
+                        (constant, as Cycles' Glossy BSDF), visible-normal sampling.
       "plastic"        rough coated diffuse: GGX dielectric coat (ior, roughness) over a
                         diffuse base of albedo `color`.
       "transparent"    straight pass-through tinted by `color` (Cycles' Transparent BSDF).

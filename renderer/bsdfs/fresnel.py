@@ -5,7 +5,7 @@ import math
 from numba import njit
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def fresnel_dielectric(cos_i, eta):
     """Unpolarised Fresnel reflectance and the cosine of the refracted direction.
 
