@@ -29,8 +29,10 @@ from renderer.media import (
     stack_remove,
     transmittance,
 )
-from renderer.media.compile import I_HAS_EMISSION, P_G
+from renderer.media.blackbody import blackbody_emission, blackbody_rgb
+from renderer.media.compile import I_HAS_EMISSION, I_MAJ_DIMS, I_MAJ_OFFSET, P_G
 from renderer.media.emission import stack_emission
+from renderer.media.grid import grid_lookup
 from renderer.media.tracking import _sigma_at
 from renderer.phase.hg import hg_eval
 from renderer.scene import Medium
@@ -598,3 +600,131 @@ def _transmittance_moments(mt, stack, o, d, tmax, use_delta, n):
             out[0, k] += tr[k]
             out[1, k] += tr[k] * tr[k]
     return out
+
+
+# ------------------------------------------------------------------------------ majorant grid
+
+
+@njit(cache=True)
+def _worst_majorant_violation(mt, m, n, seed):
+    """max over random unit-cube points of density - (majorant of the point's cell)."""
+    np.random.seed(seed)
+    cx, cy, cz = mt.index[m, I_MAJ_DIMS], mt.index[m, I_MAJ_DIMS + 1], mt.index[m, I_MAJ_DIMS + 2]
+    worst = -np.inf
+    for _ in range(n):
+        u = (np.random.random(), np.random.random(), np.random.random())
+        rho = grid_lookup(mt, m, 0, u)
+        i, j, k = min(int(u[0] * cx), cx - 1), min(int(u[1] * cy), cy - 1), min(int(u[2] * cz), cz - 1)
+        maj = mt.maj_data[mt.index[m, I_MAJ_OFFSET] + (k * cy + j) * cx + i, 0]
+        worst = max(worst, rho - maj)
+    return worst
+
+
+@pytest.mark.parametrize("shape", [(1, 1, 1), (5, 3, 7), (40, 33, 70), (300, 2, 9)])
+def test_majorant_bounds_trilinear_density(shape):
+    rng = np.random.default_rng(5)
+    density = rng.uniform(0.0, 1.0, shape) ** 8  # spiky: most voxels near 0
+    mt = compile_media([grid_medium(density, (1, 1, 1), (0, 0, 0))])
+    cells = mt.index[0, I_MAJ_DIMS : I_MAJ_DIMS + 3]
+    assert np.all(cells <= 64) and np.all(cells >= 1)
+    assert np.all(cells == [min(64, -(-n // 4)) for n in shape[::-1]])
+    assert _worst_majorant_violation(mt, 0, 200_000, 1) <= 0.0
+    one = compile_media([grid_medium(density, (1, 1, 1), (0, 0, 0))], use_majorant_grid=False)
+    assert list(one.index[0, I_MAJ_DIMS : I_MAJ_DIMS + 3]) == [1, 1, 1]
+    assert one.maj_data[0, 0] == np.float32(density.max())
+
+
+# ------------------------------------------------------------------------------ blackbody
+
+# Cycles' fitted blackbody colour (svm/math_util.h), evaluated at these temperatures.
+CYCLES_BLACKBODY = {
+    2000.0: (2.5201, 0.6469, 0.0204),
+    3000.0: (1.7708, 0.8443, 0.2722),
+    4000.0: (1.4141, 0.9236, 0.5337),
+    6500.0: (1.0426, 0.9841, 1.0353),
+    10000.0: (0.8714, 0.9949, 1.4305),
+    12000.0: (0.8263, 0.9945, 1.5663),
+}
+
+
+@pytest.mark.parametrize("temperature", sorted(CYCLES_BLACKBODY))
+def test_blackbody_matches_cycles_normalisation(temperature):
+    rgb = np.array(blackbody_rgb(temperature))
+    # Same normalisation as Cycles: Rec.709 luminance 1 (exact where no channel is clamped).
+    assert abs(0.2126 * rgb[0] + 0.7152 * rgb[1] + 0.0722 * rgb[2] - 1.0) < 1e-6
+    # Same colour within 2% of the luminance: both are approximations of Planck x CIE 1931.
+    np.testing.assert_allclose(rgb, CYCLES_BLACKBODY[temperature], atol=0.05, rtol=0.02)
+
+
+def test_blackbody_range_and_emission_formula():
+    assert blackbody_rgb(100.0) == blackbody_rgb(800.0)
+    assert blackbody_rgb(5e4) == blackbody_rgb(12000.0)
+    for t in np.geomspace(100.0, 1e5, 200):
+        rgb = blackbody_rgb(t)
+        assert all(math.isfinite(c) and c >= 0.0 for c in rgb)
+    sigma = 5.670373e-8 * 1e-6 / math.pi
+    for t, b in ((1500.0, 1.0), (2500.0, 0.5), (0.0, 1.0)):
+        expected = sigma * ((1.0 - b) + b * t**4) * np.array(blackbody_rgb(t))
+        np.testing.assert_allclose(blackbody_emission(t, b), expected, rtol=1e-12)
+    assert blackbody_emission(3000.0, 0.0) == (0.0, 0.0, 0.0)
+
+
+# ------------------------------------------------------------------------------ robustness
+
+SIGMA_VALUES = [0.0, 1e-8, 1e-3, 1.0, 1e3, 1e6]
+
+
+def _extreme_media():
+    """Every sigma_t value in every channel (as a cyclic pattern), albedos 0, 0.5, 1 and
+    |g| up to 0.9999, as homogeneous media and as grids of density contrast 1e6."""
+    rng = np.random.default_rng(2)
+    density = 10.0 ** rng.uniform(-6.0, 0.0, (4, 5, 6))
+    media = []
+    for i in range(len(SIGMA_VALUES)):
+        st = np.array([SIGMA_VALUES[(i + k) % 6] for k in range(3)])
+        albedo = np.array([0.0, 0.5, 1.0])[[(i + k) % 3 for k in range(3)]]
+        g = (-0.9999, 0.0, 0.9999)[i % 3]
+        sa, ss = tuple(st * (1.0 - albedo)), tuple(st * albedo)
+        media.append(homogeneous(sa, ss, g=g))
+        media.append(grid_medium(density, sa, ss, g=g, emission=(1.0, 0.0, 0.5) if i % 2 else (0, 0, 0)))
+    return media
+
+
+@njit(cache=True)
+def _all_outputs_finite(mt, stacks, n):
+    bad = 0
+    for s in range(stacks.shape[0]):
+        stack = stacks[s]
+        for i in range(n):
+            key = path_key(1, s, i)
+            o, d = (-0.2, 0.3, 0.4), (0.6, 0.0, 0.8)
+            for tmax in (0.5, 1e30):
+                beta = (1.0, 0.3, 1e-6)
+                t, sc, w, le, dim = sample_distance(mt, stack, o, d, tmax, beta, key, 0, i % 2 == 0)
+                tr1, _ = transmittance(mt, stack, o, d, 0.0, min(tmax, 3.0), key, 50, False)
+                tr2, _ = transmittance(mt, stack, o, d, 0.1, min(tmax, 3.0), key, 90, True)
+                vals = (t, w[0], w[1], w[2], le[0], le[1], le[2])
+                for v in vals + tr1 + tr2:
+                    if not (math.isfinite(v) and v >= 0.0):
+                        bad += 1
+                if sc:
+                    x = (o[0] + d[0] * t, o[1] + d[1] * t, o[2] + d[2] * t)
+                    wi, pw, pdf = sample_phase(mt, stack, x, d, 0.3, (i + 0.5) / n, 0.7)
+                    if not (math.isfinite(wi[0] + wi[1] + wi[2] + pw[0] + pw[1] + pw[2]) and pdf > 0.0):
+                        bad += 1
+                if not stack_has_grid(mt, stack) and tmax < 1.0:
+                    tn, wn, _ = nee_vertex(mt, stack, o, d, tmax, (0.0, 1.0, 0.5), (1.0, 1.0, 1.0), key, 7,
+                                           True, False)  # fmt: skip
+                    if not (math.isfinite(tn + wn[0] + wn[1] + wn[2]) and min(wn[0], wn[1], wn[2]) >= 0.0):
+                        bad += 1
+    return bad
+
+
+def test_extreme_coefficients_give_finite_outputs():
+    media = _extreme_media()
+    mt = compile_media(media)
+    m = len(media)
+    stacks = [stack_of(i) for i in range(m)]
+    stacks += [stack_of(i, (i + 3) % m) for i in range(m)]  # overlapping pairs, mixed kinds
+    stacks += [stack_of(0, 2, 5, 9)]
+    assert _all_outputs_finite(mt, np.array(stacks), 64) == 0

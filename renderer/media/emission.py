@@ -20,7 +20,7 @@ from renderer.media.stack import EMPTY, MAX_STACK
 from renderer.media.table import blackbody_intensity, emission, emits, grid_offset, is_grid
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def medium_emission(mt, m, p):
     """Emission of medium m at world point p (per unit length, RGB)."""
     if not emits(mt, m):
@@ -40,7 +40,7 @@ def medium_emission(mt, m, p):
     return e
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def stack_emission(mt, stack, p):
     """Emission of the whole stack at p: the entries' emission added."""
     e0 = e1 = e2 = 0.0

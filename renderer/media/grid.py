@@ -13,7 +13,7 @@ from renderer.media.compile import GRID_DENSITY, P_TO_UNIT
 from renderer.media.table import grid_dim, grid_offset, is_grid
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def to_unit_point(mt, m, p):
     a = mt.params[m]
     k = P_TO_UNIT
@@ -24,7 +24,7 @@ def to_unit_point(mt, m, p):
     )
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def to_unit_vector(mt, m, v):
     a = mt.params[m]
     k = P_TO_UNIT
@@ -35,7 +35,7 @@ def to_unit_vector(mt, m, v):
     )
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def _axis(x, n):
     """Lower voxel index and weight of the upper one for unit coordinate x on n voxels."""
     f = x * n - 0.5
@@ -47,7 +47,7 @@ def _axis(x, n):
     return i, f - i
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def grid_lookup(mt, m, which, u):
     """Trilinear value of grid `which` of medium m at unit-cube point u (0 outside)."""
     if not (0.0 <= u[0] <= 1.0 and 0.0 <= u[1] <= 1.0 and 0.0 <= u[2] <= 1.0):
@@ -74,7 +74,7 @@ def grid_lookup(mt, m, which, u):
     return c0 * (1.0 - fz) + c1 * fz
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def medium_density(mt, m, p):
     """Density of medium m at world point p: 1 for homogeneous media."""
     if not is_grid(mt, m):
