@@ -4,11 +4,14 @@ blackbody_rgb(T) is the linear Rec.709 colour of a blackbody at T kelvin normali
 luminance 1, which is Cycles' normalisation (its fitted curve in svm/math_util.h has
 Rec.709 luminance 1 at every temperature and is held constant below 800 K and above
 12000 K, as is this one). Here the colour is computed from first principles instead of a
-fit: Planck's law integrated against the CIE 1931 colour matching functions (the
-multi-lobe Gaussian approximation of Wyman, Sloan & Shirley 2013) gives XYZ, converted to
-linear Rec.709 (D65) and divided by Y. It is tabulated once at import, uniformly in 1/T
-(colour varies smoothly in mireds), and interpolated linearly. Components outside the
-Rec.709 gamut (blue below ~1000 K) are clamped to 0 as Cycles' Blackbody node does.
+fit: Planck's law summed against the CIE 1931 2-degree colour matching functions (the
+standard's 5 nm table, cie1931.py) gives XYZ, converted to linear Rec.709 (D65) and
+divided by Y; this reproduces Cycles' curve to ~1e-3. It is tabulated once at import,
+uniformly in 1/T (colour varies smoothly in mireds), and interpolated linearly.
+Below ~2000 K the colour leaves the Rec.709 gamut and blue (below 800 K also green) turns
+slightly negative (-0.09 against red 4.6 at 1000 K). Cycles' Principled Volume keeps
+those values (only its Blackbody node clamps), and so does this: the emission estimate
+stays that of Cycles, negative blue included.
 
 Principled Volume adds, where blackbody intensity b > 0 (svm/closure.h):
 
@@ -23,24 +26,12 @@ import math
 import numpy as np
 from numba import njit
 
+from renderer.media.cie1931 import CIE_1931_XYZ, CIE_LAMBDA_MIN, CIE_LAMBDA_STEP
+
 T_MIN = 800.0
 T_MAX = 12000.0
 TABLE_SIZE = 1024
 STEFAN_BOLTZMANN_OVER_PI = 5.670373e-8 * 1e-6 / math.pi
-
-
-def _lobe(lam, mu, s1, s2):
-    s = np.where(lam < mu, s1, s2)
-    return np.exp(-0.5 * ((lam - mu) / s) ** 2)
-
-
-def _cie_xyz(lam):
-    """CIE 1931 2-degree colour matching functions (Wyman, Sloan & Shirley 2013 fit)."""
-    x = 1.056 * _lobe(lam, 599.8, 37.9, 31.0) + 0.362 * _lobe(lam, 442.0, 16.0, 26.7)
-    x -= 0.065 * _lobe(lam, 501.1, 20.4, 26.2)
-    y = 0.821 * _lobe(lam, 568.8, 46.9, 40.5) + 0.286 * _lobe(lam, 530.9, 16.3, 31.1)
-    z = 1.217 * _lobe(lam, 437.0, 11.8, 36.0) + 0.681 * _lobe(lam, 459.0, 26.0, 13.8)
-    return np.stack([x, y, z])
 
 
 XYZ_TO_REC709 = np.array(
@@ -53,27 +44,26 @@ XYZ_TO_REC709 = np.array(
 
 
 def blackbody_rgb_reference(temperature: float) -> np.ndarray:
-    """Unclamped linear Rec.709 blackbody colour of luminance 1 (numpy, for the table)."""
+    """Linear Rec.709 blackbody colour of luminance 1 (numpy, builds the table)."""
     t = min(max(temperature, T_MIN), T_MAX)
-    lam = np.linspace(360.0, 830.0, 941)  # nm, 0.5 nm steps
-    c2 = 1.4387769e7  # h c / k in nm K
+    lam = CIE_LAMBDA_MIN + CIE_LAMBDA_STEP * np.arange(CIE_1931_XYZ.shape[0])  # nm
+    c2 = 1.4387769e7  # second radiation constant h c / k, in nm K
     # Planck's spectral radiance up to a constant factor (it cancels in the normalisation).
     planck = 1.0 / (lam**5 * np.expm1(c2 / (lam * t)))
-    xyz = np.trapz(_cie_xyz(lam) * planck, lam, axis=1)
+    xyz = CIE_1931_XYZ.T @ planck  # the standard's 5 nm summation
     rgb = XYZ_TO_REC709 @ (xyz / xyz[1])
     return rgb / (0.2126 * rgb[0] + 0.7152 * rgb[1] + 0.0722 * rgb[2])
 
 
 def _table() -> np.ndarray:
     inv_t = np.linspace(1.0 / T_MIN, 1.0 / T_MAX, TABLE_SIZE)
-    rgb = np.array([blackbody_rgb_reference(1.0 / x) for x in inv_t])
-    return np.ascontiguousarray(np.maximum(rgb, 0.0))
+    return np.ascontiguousarray([blackbody_rgb_reference(1.0 / x) for x in inv_t])
 
 
 BLACKBODY_TABLE = _table()  # (TABLE_SIZE, 3), row i at 1/T = 1/T_MIN + i (1/T_MAX - 1/T_MIN)/(N-1)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def blackbody_rgb(temperature):
     """Linear Rec.709 colour of a blackbody at `temperature` kelvin, luminance 1."""
     t = min(max(temperature, T_MIN), T_MAX)
@@ -93,5 +83,7 @@ def blackbody_emission(temperature, intensity):
     t = max(temperature, 0.0)
     t2 = t * t
     scale = STEFAN_BOLTZMANN_OVER_PI * ((1.0 - intensity) + intensity * t2 * t2)
+    if scale <= 0.0:  # Cycles adds nothing unless the intensity is positive (b > 1, T < 1 K)
+        return (0.0, 0.0, 0.0)
     c = blackbody_rgb(t)
     return (scale * c[0], scale * c[1], scale * c[2])
