@@ -86,7 +86,8 @@ def power_heuristic(a, b):
 
 @njit(cache=True, error_model="numpy", inline="always")
 def _vec(a, i):
-    return (float(a[i, 0]), float(a[i, 1]), float(a[i, 2]))
+    """Row i of an (n, 3) array as a float64 3-tuple (float() would keep float32 in numba)."""
+    return (np.float64(a[i, 0]), np.float64(a[i, 1]), np.float64(a[i, 2]))
 
 
 @njit(cache=True, error_model="numpy", inline="always")
