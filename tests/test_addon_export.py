@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 import pytest
-from bpy_helpers import run_blender
+from bpy_helpers import run_blender, shared_numba_cache
 
 from renderer.scenefile import load_scene
 
@@ -279,8 +279,8 @@ def exported(tmp_path_factory, numba_cache_dir):
 
 
 @pytest.fixture(scope="module")
-def numba_cache_dir(tmp_path_factory):
-    return tmp_path_factory.mktemp("numba_cache")
+def numba_cache_dir():
+    return shared_numba_cache()
 
 
 def mesh(scene, name):

@@ -12,7 +12,7 @@ import sys
 
 import numpy as np
 import pytest
-from bpy_helpers import REPO, run_blender
+from bpy_helpers import REPO, run_blender, shared_numba_cache
 
 from renderer.imageio import read_exr
 
@@ -130,10 +130,8 @@ def main():
 
 
 @pytest.fixture(scope="module")
-def numba_cache_dir(tmp_path_factory):
-    folder = tmp_path_factory.getbasetemp() / "numba_cache"
-    folder.mkdir(exist_ok=True)
-    return folder
+def numba_cache_dir():
+    return shared_numba_cache()
 
 
 @pytest.fixture(scope="module")
