@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import traceback
 from pathlib import Path
 
 import bpy
@@ -36,8 +37,8 @@ def export_to_folder(context, folder: Path) -> list[str]:
     from renderer.errors import SceneError
     from renderer.scenefile import save_scene, validate_scene
 
-    from .engine import describe_scene_error
     from .export.scene import export_scene
+    from .session import describe_scene_error
 
     exported = export_scene(context.evaluated_depsgraph_get(), render_depsgraph=False)
     try:
@@ -69,6 +70,10 @@ class HAZE_OT_export_scene(bpy.types.Operator, ExportHelper):
             warnings = export_to_folder(context, folder)
         except (ExportError, OSError) as error:
             self.report({"ERROR"}, str(error))
+            return {"CANCELLED"}
+        except Exception as error:  # a bug of ours must not look like a Blender crash
+            traceback.print_exc()
+            self.report({"ERROR"}, f"Export Haze Scene failed: {type(error).__name__}: {error}")
             return {"CANCELLED"}
         for text in warnings:
             self.report({"WARNING"}, text)

@@ -28,37 +28,43 @@ log = {"progress": [], "stats": [], "reports": []}
 state = {"breaks_after": None, "interrupt_at": None}
 
 
-def instrument():
-    """Record what the engine tells Blender; optionally cancel like a user would."""
-    from addon.engine import HazeRenderEngine
-    original_progress = HazeRenderEngine.update_progress
-    original_stats = HazeRenderEngine.update_stats
-    original_report = HazeRenderEngine.report
-    original_break = HazeRenderEngine.test_break
+class Recorder:
+    """Stands between the session and Blender's engine: records, may cancel, forwards."""
+
+    def __init__(self, engine):
+        self._engine = engine
+
+    def __getattr__(self, name):
+        return getattr(self._engine, name)
 
     def update_progress(self, value):
         log["progress"].append(value)
         if state["interrupt_at"] is not None and len(log["progress"]) >= state["interrupt_at"]:
             raise KeyboardInterrupt  # as if Ctrl-C arrived during the render
-        return original_progress(self, value)
+        self._engine.update_progress(value)
 
     def update_stats(self, stats, info):
         log["stats"].append(info)
-        return original_stats(self, stats, info)
+        self._engine.update_stats(stats, info)
 
     def report(self, kind, text):
         log["reports"].append([sorted(kind)[0], text])
-        return original_report(self, kind, text)
+        self._engine.report(kind, text)
 
     def test_break(self):
         if state["breaks_after"] is not None and len(log["progress"]) >= state["breaks_after"]:
             return True
-        return original_break(self)
+        return self._engine.test_break()
 
-    HazeRenderEngine.update_progress = update_progress
-    HazeRenderEngine.update_stats = update_stats
-    HazeRenderEngine.report = report
-    HazeRenderEngine.test_break = test_break
+
+def instrument():
+    """Every render session talks to Blender's engine through a Recorder."""
+    import addon.session as session
+    original_init = session.RenderSession.__init__
+
+    def init(self, engine, depsgraph, *args, **kwargs):
+        original_init(self, Recorder(engine), depsgraph, *args, **kwargs)
+    session.RenderSession.__init__ = init
 
 
 def render(scene, name, **state_values):
@@ -107,11 +113,13 @@ def main():
     results["interrupt"] = render(scene, "interrupt", interrupt_at=2)
 
     scene = cornell(2)
-    texture = bpy.data.materials["Back Wall"].node_tree.nodes.new("ShaderNodeTexNoise")
+    wall = bpy.data.objects["Back"].active_material  # a fresh copy: "Back Wall.00N"
+    tree = wall.node_tree
+    texture = tree.nodes.new("ShaderNodeTexNoise")
     texture.name = "Stucco"
-    tree = bpy.data.materials["Back Wall"].node_tree
     tree.links.new(texture.outputs["Color"], tree.nodes["Diffuse BSDF"].inputs["Color"])
     fog = bpy.data.objects["Fog"]
+    results["names"] = {"wall": wall.name, "fog": fog.active_material.name}
     import bmesh
     bm = bmesh.new(); bm.from_mesh(fog.data); bm.faces.ensure_lookup_table()
     bmesh.ops.delete(bm, geom=[bm.faces[0]], context="FACES_ONLY"); bm.to_mesh(fog.data); bm.free()
@@ -179,9 +187,10 @@ def test_unsupported_node_open_volume_and_flat_light_warn_but_render(renders):
     record = renders["warned"]
     assert record["error"] == "" and errors(record) == []
     texts = warnings(record)
-    assert "Material 'Back Wall', node 'Stucco': Noise Texture nodes are not supported by Haze; " \
+    names = renders["names"]
+    assert f"Material '{names['wall']}', node 'Stucco': Noise Texture nodes are not supported by Haze; " \
            "the inputs it feeds use their own values" in texts
-    open_fog = "Object 'Fog': encloses the volume 'Fog (volume)' but is not closed"
+    open_fog = f"Object 'Fog': encloses the volume '{names['fog']} (volume)' but is not closed"
     assert any(t.startswith(open_fog) for t in texts)
     assert "Object 'Flat Light': area light has zero size, so it emits nothing; it is skipped" in texts
     assert np.isfinite(read_exr(record["exr"])).all()
