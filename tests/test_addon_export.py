@@ -123,6 +123,29 @@ def build_materials():
     m["plain"] = H.principled_material("Plain", Base_Color=(0.3, 0.4, 0.5), Specular_IOR_Level=0.0)
     material, tree, out = node_material("Empty Output")
     m["empty"] = material
+    # A node group computing 0.5 x its input, a muted Math node (passes its first input
+    # through) and an unsupported closure (Translucent BSDF: diffuse fallback of its colour).
+    group = bpy.data.node_groups.new("Halve", "ShaderNodeTree")
+    group.interface.new_socket("Value", in_out="INPUT", socket_type="NodeSocketFloat")
+    group.interface.new_socket("Value", in_out="OUTPUT", socket_type="NodeSocketFloat")
+    group_in = group.nodes.new("NodeGroupInput"); group_out = group.nodes.new("NodeGroupOutput")
+    halve = group.nodes.new("ShaderNodeMath")
+    halve.operation, halve.inputs[1].default_value = "MULTIPLY", 0.5
+    group.links.new(group_in.outputs[0], halve.inputs[0])
+    group.links.new(halve.outputs[0], group_out.inputs[0])
+    material, tree, out = node_material("Grouped")
+    group_node = tree.nodes.new("ShaderNodeGroup"); group_node.node_tree = group
+    group_node.inputs[0].default_value = 0.8
+    muted = tree.nodes.new("ShaderNodeMath"); muted.operation = "POWER"; muted.mute = True
+    link(tree, group_node.outputs[0], muted.inputs[0])
+    glossy = tree.nodes.new("ShaderNodeBsdfGlossy")
+    link(tree, muted.outputs[0], glossy.inputs["Roughness"])
+    translucent = tree.nodes.new("ShaderNodeBsdfTranslucent"); translucent.name = "Leaf"
+    translucent.inputs["Color"].default_value = (0.2, 0.7, 0.1, 1)
+    add = tree.nodes.new("ShaderNodeAddShader")
+    link(tree, glossy.outputs[0], add.inputs[0]); link(tree, translucent.outputs[0], add.inputs[1])
+    link(tree, add.outputs[0], out.inputs["Surface"])
+    m["grouped"] = material
     return m
 
 
@@ -138,7 +161,7 @@ def build_main_scene():
     for obj in list(scene.collection.all_objects):
         bpy.data.objects.remove(obj, do_unlink=True)
     m = build_materials()
-    for key in ("principled", "level", "two_sided", "folded", "textured", "plain", "empty"):
+    for key in ("principled", "level", "two_sided", "folded", "textured", "plain", "empty", "grouped"):
         H.floor_plane(f"Plane {key}", 0.5, m[key], z=-5.0)
     cube("Fog Box", (0, 0, 0), 1.0, m["fog"])
     cube("Smoke Box", (3, 0, 0), 0.5, m["smoke"])
@@ -528,3 +551,11 @@ def test_world_background_volume_and_unsupported_texture(exported):
     assert world_medium.sigma_s == pytest.approx((0.008, 0.008, 0.008))  # 0.8 x 0.01
     assert any(w.startswith("World 'Sky World', node 'Sky Texture': Sky Texture nodes are not supported")
                for w in exported["main"]["warnings"])
+
+
+def test_groups_muted_nodes_and_unsupported_closures(exported):
+    lobes = lobes_by_kind(material(exported["main_scene"], "Grouped"))
+    assert lobes["rough_conductor"].roughness == pytest.approx(0.4)  # 0.8 halved; the muted POWER passes it
+    assert lobes["diffuse"].color == pytest.approx((0.2, 0.7, 0.1))  # Translucent's fallback
+    assert "Material 'Grouped', node 'Leaf': Translucent BSDF shaders are not supported by Haze; " \
+           "rendered as a Diffuse BSDF of its Color" in exported["main"]["warnings"]

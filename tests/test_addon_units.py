@@ -1,0 +1,104 @@
+"""Export helpers that need no Blender: stand-in datablocks and plain arrays."""
+
+from __future__ import annotations
+
+import math
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from addon.export.camera import contract_shift, field_of_view, film_size
+from addon.export.lights import area_outline, fan_triangles
+from addon.export.materials import choose_emission, close_open_sides, convert_material
+from addon.export.mesh import LocalGeometry, edge_problems, transform
+from addon.export.messages import Messages
+from addon.export.nodes import Term, adjusted_specular_ior, merge_sides, safe_power, scale_terms
+from renderer.scene import Lobe
+
+CUBE = np.array([[0, 1, 3], [0, 3, 2], [4, 6, 7], [4, 7, 5], [0, 4, 5], [0, 5, 1],
+                 [2, 3, 7], [2, 7, 6], [0, 2, 6], [0, 6, 4], [1, 5, 7], [1, 7, 3]], np.int32)
+
+
+def test_material_without_node_tree_is_its_viewport_colour():
+    old = SimpleNamespace(name_full="Old", node_tree=None, use_nodes=False,
+                          diffuse_color=(0.3, 0.4, 0.5, 1.0))
+    exported = convert_material(old, Messages())
+    assert exported.medium is None
+    assert [(lobe.kind, lobe.color) for lobe in exported.material.lobes] == [("diffuse", (0.3, 0.4, 0.5))]
+
+
+def test_open_sides_get_black_opaque_lobes():
+    front_only = [Lobe("diffuse", color=(1, 0, 0), sides="front")]
+    assert [(lobe.color, lobe.sides) for lobe in close_open_sides(front_only)[1:]] == [((0, 0, 0), "back")]
+    assert [lobe.sides for lobe in close_open_sides([])] == ["both"]
+    assert close_open_sides([Lobe("transparent")]) == [Lobe("transparent")]
+
+
+def test_emission_sides():
+    messages = Messages()
+    assert choose_emission(np.ones(3), np.zeros(3), "M", messages) == ((1, 1, 1), "front")
+    assert choose_emission(np.zeros(3), np.ones(3), "M", messages) == ((1, 1, 1), "back")
+    assert choose_emission(np.ones(3), np.ones(3), "M", messages) == ((1, 1, 1), "both")
+    assert messages.warnings == []
+    choose_emission(np.ones(3), 2 * np.ones(3), "M", messages)
+    assert messages.warnings == [
+        "M: emission differs between front and back faces; the front value is used on both"]
+
+
+def test_side_dependent_factors_split_terms():
+    terms = [Term("diffuse", np.ones(3))]
+    split = scale_terms(terms, np.array([[0.25], [1.0]]))
+    assert [(t.sides, float(t.weight[0])) for t in split] == [("front", 0.25), ("back", 1.0)]
+    assert [t.sides for t in merge_sides(terms, terms)] == ["both"]
+    assert scale_terms(terms, np.array([[0.0], [0.0]])) == []
+
+
+def test_specular_ior_level_matches_cycles():
+    assert adjusted_specular_ior(1.5, 0.5) == 1.5
+    f0 = 2.0 * 0.8 * 0.04  # level 0.8 scales F0 = 0.04 by 1.6
+    assert adjusted_specular_ior(1.5, 0.8) == pytest.approx((1 + math.sqrt(f0)) / (1 - math.sqrt(f0)))
+    assert adjusted_specular_ior(1.5, 0.0) == 1.0
+
+
+def test_safe_power_follows_cycles():
+    result = safe_power(np.array([-8.0, -8.0, 4.0]), np.array([1.0 / 3.0, 3.0, 0.5]))
+    assert result.tolist() == [0.0, -512.0, 2.0]
+
+
+def test_closed_and_open_meshes():
+    assert edge_problems(CUBE) == (0, 0)
+    assert edge_problems(CUBE[2:])[0] == 4  # one face removed: a square hole
+    flipped = CUBE.copy()
+    flipped[0] = flipped[0, ::-1]
+    assert edge_problems(flipped)[1] > 0
+
+
+def test_mirroring_transform_reverses_winding():
+    geometry = LocalGeometry(np.eye(3, dtype=np.float32), np.array([[0, 1, 2]], np.int32), None,
+                             np.zeros(1, np.int32), np.array([[0, 1, 2]], np.int32))
+    mirror = np.diag([-1.0, 1.0, 1.0, 1.0])
+    world = transform(geometry, mirror)
+    assert world.triangles.tolist() == [[2, 1, 0]]
+    assert world.vertices[0].tolist() == [-1.0, 0.0, 0.0]
+
+
+def test_area_light_outlines_have_cycles_area_and_face_down():
+    disk = SimpleNamespace(shape="ELLIPSE", size=2.0, size_y=1.0)
+    points, area = area_outline(disk)
+    assert area == pytest.approx(math.pi / 4 * 2.0)
+    triangles = points[fan_triangles(len(points))]
+    normals = np.cross(triangles[:, 1] - triangles[:, 0], triangles[:, 2] - triangles[:, 0])
+    assert 0.5 * np.linalg.norm(normals, axis=1).sum() == pytest.approx(area)
+    assert np.all(normals[:, 2] < 0)
+
+
+def test_camera_fit_and_shift():
+    camera = SimpleNamespace(sensor_fit="AUTO", sensor_width=36.0, sensor_height=24.0, lens=50.0,
+                             shift_x=0.1, shift_y=0.2)
+    assert field_of_view(camera, 100, 200) == (pytest.approx(math.degrees(2 * math.atan(18 / 50))), "y")
+    camera.sensor_fit = "HORIZONTAL"
+    assert field_of_view(camera, 100, 200)[1] == "x"
+    assert contract_shift(camera, "x", 100, 200) == pytest.approx((0.05, 0.1))
+    render = SimpleNamespace(resolution_x=1920, resolution_y=1080, resolution_percentage=50)
+    assert film_size(render) == (960, 540)
