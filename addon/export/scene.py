@@ -23,6 +23,7 @@ from .messages import Messages, object_subject
 from .world import world_environment
 
 GEOMETRY_TYPES = {"MESH", "CURVE", "SURFACE", "FONT", "META"}
+RAY_VISIBILITY = ("camera", "diffuse", "glossy", "transmission", "volume_scatter", "shadow")
 UNSUPPORTED_TYPES = {"CURVES": "hair curves", "POINTCLOUD": "point clouds", "VOLUME": "volume objects",
                      "GREASEPENCIL": "Grease Pencil"}
 
@@ -82,12 +83,19 @@ class MeshCollector:
 
     def add(self, instance) -> None:
         obj = instance.object
+        self._warn_ignored_visibility(obj)
         geometry = self._local_geometry(obj)
         if geometry is None or len(geometry.triangles) == 0:
             return
         world = transform(geometry, np.array(instance.matrix_world, dtype=np.float64))
         names = [self.library.get(m).material.name for m in self._slot_materials(obj)]
         self.groups.setdefault(instance_group(instance), []).append(MeshPart(world, names))
+
+    def _warn_ignored_visibility(self, obj) -> None:
+        hidden = [name for name in RAY_VISIBILITY if not getattr(obj, f"visible_{name}", True)]
+        if hidden or getattr(obj, "is_holdout", False):
+            self.messages.warn(object_subject(obj.name), "ray visibility and holdout settings are ignored; "
+                               "the object is rendered like any other")
 
     def _slot_materials(self, obj) -> list:
         materials = [slot.material for slot in obj.material_slots]
