@@ -9,13 +9,13 @@ from numba import njit
 _ZERO3 = (0.0, 0.0, 0.0)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def conductor_eval(color, roughness, ior, wo, wi):
     """A delta lobe has no density to evaluate."""
     return _ZERO3, 0.0
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def conductor_sample(color, roughness, ior, wo, u1, u2, u3):
     """Mirror direction; weight = color. pdf is the discrete probability of the branch (1)."""
     wi = (-wo[0], -wo[1], wo[2])

@@ -5,7 +5,7 @@ import math
 from numba import njit
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def fresnel_dielectric(cos_i, eta):
     """Unpolarised Fresnel reflectance and the cosine of the refracted direction.
 

@@ -31,7 +31,7 @@ from renderer.bsdfs.transparent import transparent_sample
 _ZERO3 = (0.0, 0.0, 0.0)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def lobe_is_delta(kind, roughness):
     if kind == DIELECTRIC or kind == CONDUCTOR or kind == TRANSPARENT:
         return True
@@ -40,7 +40,7 @@ def lobe_is_delta(kind, roughness):
     return False
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def lobe_eval(kind, color, roughness, ior, wo, wi):
     """(f, pdf) of one lobe; zero for delta lobes."""
     if kind == DIELECTRIC or kind == TRANSPARENT or kind == CONDUCTOR:
@@ -59,7 +59,7 @@ def lobe_eval(kind, color, roughness, ior, wo, wi):
     return _ZERO3, 0.0
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def lobe_sample(kind, color, roughness, ior, wo, u1, u2, u3):
     """(wi, weight = f |cos| / pdf, pdf, is_delta) of one lobe.
 

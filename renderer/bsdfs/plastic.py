@@ -33,7 +33,7 @@ from renderer.kernels.vecmath import INV_PI, normalize
 _ZERO3 = (0.0, 0.0, 0.0)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _coat_probability(color, e_o):
     """Chance of sampling the coat: its share of the albedo E(wo) + avg(color) (1 - E(wo))."""
     base = (color[0] + color[1] + color[2]) / 3.0 * (1.0 - e_o)
@@ -41,7 +41,7 @@ def _coat_probability(color, e_o):
     return e_o / total if total > 0.0 else 1.0
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def plastic_eval(color, roughness, ior, wo, wi):
     if wo[2] <= 0.0 or wi[2] <= 0.0:
         return _ZERO3, 0.0
@@ -63,7 +63,7 @@ def plastic_eval(color, roughness, ior, wo, wi):
     return f, pdf
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def plastic_sample(color, roughness, ior, wo, u1, u2, u3):
     """u3 picks coat or base; (u1, u2) sample the chosen one. The weight uses the full
     mixture f and pdf (of the non-delta parts), so it equals eval's f cos / pdf."""

@@ -23,7 +23,7 @@ from renderer.kernels.vecmath import normalize, scale
 _ZERO3 = (0.0, 0.0, 0.0)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def rough_conductor_eval(color, roughness, ior, wo, wi):
     if wo[2] <= 0.0 or wi[2] <= 0.0:
         return _ZERO3, 0.0
@@ -34,7 +34,7 @@ def rough_conductor_eval(color, roughness, ior, wo, wi):
     return scale(color, f), ggx_reflection_pdf(alpha, wo, wi)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def rough_conductor_sample(color, roughness, ior, wo, u1, u2, u3):
     """Visible-normal sampling; the weight f cos / pdf reduces to color * G2 / G1(wo)."""
     if wo[2] <= 0.0:

@@ -7,7 +7,7 @@ from numba import njit
 from renderer.kernels.vecmath import INV_PI
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def square_to_cosine_hemisphere(u1, u2):
     """Cosine-weighted direction on the upper hemisphere: pdf = cos(theta) / pi.
 
@@ -20,6 +20,6 @@ def square_to_cosine_hemisphere(u1, u2):
     return (r * math.cos(phi), r * math.sin(phi), z)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def cosine_hemisphere_pdf(cos_theta):
     return cos_theta * INV_PI if cos_theta > 0.0 else 0.0

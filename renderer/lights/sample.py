@@ -16,7 +16,7 @@ from ..kernels.vecmath import INV_4PI, cross, dot, length, normalize, onb, scale
 from .table import POINT, SPOT, SUN, TRIANGLE
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def pick_light(cdf, u):
     """Row whose cdf interval holds u (binary search); -1 when there are no lights."""
     n = cdf.shape[0] - 1
@@ -32,13 +32,13 @@ def pick_light(cdf, u):
     return lo
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def light_has_point(lt, light):
     k = lt[0][light]
     return k == TRIANGLE or k == POINT or k == SPOT
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def light_point(lt, light, u1, u2):
     """A point on the light, uniform by area for triangles; the position of point and spot
     lights; the origin for sun and environment (which have no point)."""
@@ -54,7 +54,7 @@ def light_point(lt, light, u1, u2):
             p[2] + b1 * vec_a[light, 2] + b2 * vec_b[light, 2])
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def _smoothstep(x):
     if x <= 0.0:
         return 0.0
@@ -63,7 +63,7 @@ def _smoothstep(x):
     return x * x * (3.0 - 2.0 * x)
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def spot_attenuation(axis, cos_outer, blend_width, wi_from_light):
     c = dot(axis, wi_from_light)
     if c <= cos_outer:
@@ -73,7 +73,7 @@ def spot_attenuation(axis, cos_outer, blend_width, wi_from_light):
     return _smoothstep((c - cos_outer) / blend_width)
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def connect_light(lt, light, lp, x, u1, u2):
     """Connect shading point x to light `light` (at point lp for lights that have one).
 
@@ -126,7 +126,7 @@ def connect_light(lt, light, lp, x, u1, u2):
     return (r * math.cos(phi), r * math.sin(phi), z), 1e30, c, INV_4PI, False
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def escaped_radiance(lt, env_light, sun_rows, d):
     """Radiance arriving along direction d from infinity (environment and sun discs), and
     the light-sampling pdf of that direction including selection probabilities (for MIS)."""
@@ -148,7 +148,7 @@ def escaped_radiance(lt, env_light, sun_rows, d):
     return (r, g, b), pdf
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def triangle_light_pdf(lt, light, x, p, cos_l):
     """Solid-angle pdf, with selection, of light-sampling point p on triangle light `light`
     from x, where cos_l is the cosine at the light."""

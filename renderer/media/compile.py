@@ -83,6 +83,10 @@ class MediaTable(NamedTuple):
     index: np.ndarray
     grid_data: np.ndarray
     maj_data: np.ndarray
+    # (MAX_STACK, DDA_SIZE) float64 working rows of the majorant-grid walk. Kernels run one
+    # path at a time per process, so one scratch serves them all; it lives here because the
+    # kernels are compiled without reference counting and so cannot allocate.
+    scratch: np.ndarray
 
 
 def compile_media(media: list[Medium], use_majorant_grid: bool = True) -> MediaTable:
@@ -166,8 +170,20 @@ def compile_media(media: list[Medium], use_majorant_grid: bool = True) -> MediaT
     index[:, I_MAJ_OFFSET] = maj_offset
     index[:, I_MAJ_DIMS : I_MAJ_DIMS + 3] = maj_dims
     return MediaTable(
-        params, index, np.ascontiguousarray(grid_data, np.float32), np.ascontiguousarray(maj_data, np.float32)
+        params,
+        index,
+        np.ascontiguousarray(grid_data, np.float32),
+        np.ascontiguousarray(maj_data, np.float32),
+        _dda_scratch(),
     )
+
+
+def _dda_scratch() -> np.ndarray:
+    # Imported here: the DDA module reads this module's column constants.
+    from renderer.media.majorant import DDA_SIZE
+    from renderer.media.stack import MAX_STACK
+
+    return np.zeros((MAX_STACK, DDA_SIZE), np.float64)
 
 
 # ------------------------------------------------------------------------------ validation

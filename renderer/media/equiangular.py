@@ -25,7 +25,7 @@ D_FLOOR = 1e-7  # relative to |delta|
 D_MIN = 1e-12  # world units
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def _frame(o, d, light_p, tmax):
     to_light = sub(light_p, o)
     delta = dot(to_light, d)
@@ -36,7 +36,7 @@ def _frame(o, d, light_p, tmax):
     return delta, big_d, theta_a, theta_b - theta_a
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def equiangular_pdf(o, d, light_p, tmax, t):
     delta, big_d, _, theta_d = _frame(o, d, light_p, tmax)
     if theta_d < MIN_THETA:
@@ -45,7 +45,7 @@ def equiangular_pdf(o, d, light_p, tmax, t):
     return big_d / (theta_d * (big_d * big_d + x * x))
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def equiangular_sample(o, d, light_p, tmax, u):
     """(t, pdf) with t in [0, tmax)."""
     delta, big_d, theta_a, theta_d = _frame(o, d, light_p, tmax)

@@ -13,29 +13,29 @@ from renderer.media.compile import GRID_DENSITY, P_TO_UNIT
 from renderer.media.table import grid_dim, grid_offset, is_grid
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def to_unit_point(mt, m, p):
-    a = mt.params[m]
+    a = mt.params  # indexed in 2-D: a row view would cost a reference-count round trip
     k = P_TO_UNIT
     return (
-        a[k + 0] * p[0] + a[k + 1] * p[1] + a[k + 2] * p[2] + a[k + 3],
-        a[k + 4] * p[0] + a[k + 5] * p[1] + a[k + 6] * p[2] + a[k + 7],
-        a[k + 8] * p[0] + a[k + 9] * p[1] + a[k + 10] * p[2] + a[k + 11],
+        a[m, k + 0] * p[0] + a[m, k + 1] * p[1] + a[m, k + 2] * p[2] + a[m, k + 3],
+        a[m, k + 4] * p[0] + a[m, k + 5] * p[1] + a[m, k + 6] * p[2] + a[m, k + 7],
+        a[m, k + 8] * p[0] + a[m, k + 9] * p[1] + a[m, k + 10] * p[2] + a[m, k + 11],
     )
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def to_unit_vector(mt, m, v):
-    a = mt.params[m]
+    a = mt.params
     k = P_TO_UNIT
     return (
-        a[k + 0] * v[0] + a[k + 1] * v[1] + a[k + 2] * v[2],
-        a[k + 4] * v[0] + a[k + 5] * v[1] + a[k + 6] * v[2],
-        a[k + 8] * v[0] + a[k + 9] * v[1] + a[k + 10] * v[2],
+        a[m, k + 0] * v[0] + a[m, k + 1] * v[1] + a[m, k + 2] * v[2],
+        a[m, k + 4] * v[0] + a[m, k + 5] * v[1] + a[m, k + 6] * v[2],
+        a[m, k + 8] * v[0] + a[m, k + 9] * v[1] + a[m, k + 10] * v[2],
     )
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def _axis(x, n):
     """Lower voxel index and weight of the upper one for unit coordinate x on n voxels."""
     f = x * n - 0.5
@@ -47,7 +47,7 @@ def _axis(x, n):
     return i, f - i
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def grid_lookup(mt, m, which, u):
     """Trilinear value of grid `which` of medium m at unit-cube point u (0 outside)."""
     if not (0.0 <= u[0] <= 1.0 and 0.0 <= u[1] <= 1.0 and 0.0 <= u[2] <= 1.0):
@@ -74,7 +74,7 @@ def grid_lookup(mt, m, which, u):
     return c0 * (1.0 - fz) + c1 * fz
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def medium_density(mt, m, p):
     """Density of medium m at world point p: 1 for homogeneous media."""
     if not is_grid(mt, m):

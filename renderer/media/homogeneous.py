@@ -13,7 +13,7 @@ from renderer.media.stack import EMPTY, MAX_STACK
 from renderer.media.table import emission, emits, sigma_a, sigma_s
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def stack_sigma(mt, stack):
     """(sigma_a, sigma_s) summed over the stack; valid for stacks without grids."""
     a0 = a1 = a2 = 0.0
@@ -33,7 +33,7 @@ def stack_sigma(mt, stack):
     return (a0, a1, a2), (s0, s1, s2)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def stack_constant_emission(mt, stack):
     """Emission summed over the stack's emitting entries (homogeneous entries only)."""
     e0 = e1 = e2 = 0.0
@@ -49,13 +49,13 @@ def stack_constant_emission(mt, stack):
     return (e0, e1, e2)
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def optical_depth(sigma, t):
     # Written out so that sigma = 0 over an infinite segment is 0, not 0 * inf = NaN.
     return sigma * t if sigma > 0.0 else 0.0
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def beer(sigma_t, t):
     """Transmittance exp(-sigma_t t) per channel."""
     return (
@@ -65,7 +65,7 @@ def beer(sigma_t, t):
     )
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def _transmitted_length(sigma, t):
     # integral_0^t exp(-sigma s) ds = (1 - exp(-sigma t)) / sigma, written with expm1 so
     # that it tends to t without cancellation as sigma t -> 0 (and is exactly t at 0).
@@ -74,7 +74,7 @@ def _transmitted_length(sigma, t):
     return t
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def emission_integral(emission, sigma_t, t):
     """integral_0^t exp(-sigma_t s) emission ds per channel (constant emission)."""
     return (
@@ -84,7 +84,7 @@ def emission_integral(emission, sigma_t, t):
     )
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def sample_exponential(sigma, u):
     """Free-flight distance with density sigma exp(-sigma t); inf when sigma is 0.
     u < 1 (24-bit uniforms) keeps -log1p(-u) <= 16.7, so t <= 16.7 / sigma."""
@@ -93,7 +93,7 @@ def sample_exponential(sigma, u):
     return math.inf
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def sample_truncated_exponential(sigma, tmax, u):
     """Distance on [0, tmax) with density sigma exp(-sigma t) / (1 - exp(-sigma tmax))."""
     x = optical_depth(sigma, tmax)
@@ -103,7 +103,7 @@ def sample_truncated_exponential(sigma, tmax, u):
     return u * tmax
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def truncated_exponential_pdf(sigma, tmax, t):
     x = optical_depth(sigma, tmax)
     if x > 0.0:
@@ -111,7 +111,7 @@ def truncated_exponential_pdf(sigma, tmax, t):
     return 1.0 / tmax
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def free_flight(sigma_a, sigma_s, tmax, p, u_channel, u_distance):
     """Sample the next collision on [0, tmax) in a homogeneous medium by spectral MIS.
 

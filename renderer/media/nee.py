@@ -28,7 +28,7 @@ from renderer.media.homogeneous import (
 from renderer.media.spectral import channel_probabilities, pick_channel
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def nee_vertex(mt, stack, o, d, tmax, light_p, throughput, key, dim, use_equiangular, uniform_channel):
     """(t, weight3, dim) for a HOMOGENEOUS stack: a point on [0, tmax) and its weight
     T(t) sigma_s / pdf(t). Consumes 3 dimensions. Plain truncated free flight when
