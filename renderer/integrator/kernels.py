@@ -168,7 +168,7 @@ def _hit_weight(mis_pdf, pdf_light, sampling):
     return power_heuristic(mis_pdf, pdf_light)
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def _medium_nee(ps, i, md, lt, cfg, x, d, beta, key, dim, sh, s, light, lp, weight):
     """Next-event estimation from medium point x (with path weight `weight` to reach it)."""
     pmf = lt[7]
@@ -481,7 +481,7 @@ def walk_shadows(count, sh, prim, thit, remaining, geo, mt, md, cfg, L):
         sh.alive[s] = 1
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def _transparency(mt, m, front):
     """How much light passes straight through material m from this side: 1 for a surface
     with no lobes (an interface), the transparent lobes' weight*color otherwise."""
