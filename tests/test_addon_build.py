@@ -116,10 +116,11 @@ def main():
     package = next(name for name in enabled)
     extension_dir = os.path.dirname(sys.modules[package].__file__)
     cache = os.environ.get("NUMBA_CACHE_DIR", "")
+    engines = {getattr(e, "bl_idname", "") for e in bpy.types.RenderEngine.__subclasses__()}
     return {
         "enabled": enabled,
         "has_settings": hasattr(bpy.types.Scene, "haze"),
-        "engine_registered": "HAZE" in {e.bl_idname for e in bpy.types.RenderEngine.__subclasses__()},
+        "engine_registered": "HAZE" in engines,
         "modules": modules,
         "extension_dir": extension_dir,
         "user_cache": bpy.utils.extension_path_user(package, path="numba_cache"),

@@ -145,11 +145,13 @@ KNOWN_DIFFERENCES = {
 }
 
 
-def scene_cases():
+def scene_cases() -> list:
+    cases = []
     for name in SAMPLES:
         reason = KNOWN_DIFFERENCES.get(name)
         marks = [pytest.mark.xfail(strict=True, reason=reason)] if reason else []
-        yield pytest.param(name, marks=marks, id=name)
+        cases.append(pytest.param(name, marks=marks, id=name))
+    return cases
 
 
 @pytest.mark.parametrize("scene", scene_cases())
