@@ -29,8 +29,8 @@ from renderer.scene import (
     SunLight,
 )
 
-# Fig. 1: max-depth 5 (the paper counts the camera segment as depth 1; Cycles counts
-# scattering events, so 5 path segments are 4 bounces).
+# Fig. 1: "max-depth 5". The paper's integrator follows pbrt, whose maxDepth d gathers
+# direct light at up to d path vertices; Cycles' max_bounces = d - 1 does the same.
 FIG1_MAX_BOUNCES = 4
 FIG5_SIGMA_A = (90.0, 90.0, 90.0)
 FIG5_SIGMA_S = (10.0, 10.0, 10.0)

@@ -17,9 +17,11 @@ import numpy as np
 import pytest
 
 from examples.media_scenes import (
+    PARALLEL_FOV,
     PLANE_ALBEDO,
     SUN_IRRADIANCE,
     add_slab,
+    camera_at,
     emitter_behind_box,
     fog_cornell,
     furnace_medium,
@@ -37,7 +39,7 @@ from examples.media_scenes import (
 from examples.scenes import cornell_box
 from renderer.film import Film
 from renderer.render import render_progressive
-from renderer.scene import Medium, Scene
+from renderer.scene import Environment, Medium, Scene
 
 Z = 5.0  # z-score bound: a false alarm about once in 3.5 million checks
 RTOL = 1e-5  # rounding of radiance arithmetic (float32 tables, float64 sums)
@@ -381,6 +383,41 @@ def test_emitting_box_in_front_of_black(sigma_a):
     s = np.array(sigma_a)
     want = emission * np.where(s > 0, -np.expm1(-s * 1.0) / np.where(s > 0, s, 1.0), 1.0)
     assert_exact(film, want, emission * np.exp(-s * 1.0))
+
+
+@pytest.mark.parametrize("distance_sampling", ["spectral_mis", "uniform"])
+def test_emitting_grid_with_a_flame_profile(distance_sampling):
+    """A non-absorbing grid whose emission is scaled by a flame grid varying along the view:
+    pixel = E * integral of flame (trilinear, exact), estimated at tentative collisions."""
+    emission = np.array([1.0, 2.0, 3.0])
+    flame = np.broadcast_to(PROFILE[:, None, None], (len(PROFILE), 2, 2)).copy()
+    medium = grid_medium("flame", np.zeros((1, 1, 1), np.float32), (0.0, 0.0, 0.0), (0.5, 0.5, 0.5),
+                         (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), emission=tuple(emission), flame=flame)
+    scene = media_in_front_of_black([medium], [("flame", (0.0, 0.0, 0.0), (0.6, 0.6, 0.6))], spp=1024)
+    scene.integrator.distance_sampling = distance_sampling
+    assert_film_mean(render_film(scene), emission * trilinear_depth_1d(PROFILE), "flame")
+
+
+def test_emitting_absorbing_grid_box():
+    """A grid of constant density with sigma_a and constant emission (no flame grid: the
+    emission fills the grid box, not scaled by density): E (1 - exp(-sigma_a L)) / sigma_a."""
+    emission, sigma = np.array([1.0, 2.0, 3.0]), np.array([0.5, 1.0, 3.0])
+    medium = grid_medium("glow", np.ones((2, 2, 2), np.float32), (0.0, 0.0, 0.0), (0.5, 0.5, 0.5), sigma,
+                         (0.0, 0.0, 0.0), emission=tuple(emission))
+    scene = media_in_front_of_black([medium], [("glow", (0.0, 0.0, 0.0), (0.6, 0.6, 0.6))], spp=1024)
+    assert_film_mean(render_film(scene), emission * -np.expm1(-sigma) / sigma, "emitting grid")
+
+
+def test_camera_inside_two_overlapping_media():
+    """The camera sits in both boxes (found from the geometry): z in [-0.5, 0.5] with s1 and
+    [-0.3, 0.7] with s2, looking down -z at an environment of 1 from z = 0.1."""
+    s1, s2 = np.array([0.3, 0.9, 1.5]), np.array([1.2, 0.6, 0.1])
+    boxes = [("a", (0.0, 0.0, 0.0), (1.0, 1.0, 0.5)), ("b", (0.0, 0.0, 0.2), (1.0, 1.0, 0.5))]
+    scene = media_in_front_of_black([absorber("a", s1), absorber("b", s2)], boxes, spp=1024)
+    scene.camera = camera_at((0.011, 0.017, 0.1), PARALLEL_FOV)
+    scene.environment = Environment((1.0, 1.0, 1.0))
+    clip = scene.camera.clip_start
+    assert_film_mean(render_film(scene), np.exp(-(s1 * (0.6 - clip) + s2 * (0.4 - clip))), "nested")
 
 
 def test_smoke_ball_density_follows_the_fig3_generator():
