@@ -23,16 +23,16 @@ from renderer.imageio import write_png  # noqa: E402
 from renderer.render import render_progressive  # noqa: E402
 
 OUT = ROOT / "docs" / "gallery"
-# Samples per pixel for each scene at 128x128: enough for a clean picture in about a
-# minute or two on two cores (the grids and the water's caustics cost the most).
+# Samples per pixel for each scene: at 128x128 each takes about a minute on two cores
+# (the fog's multiple scattering converges slowly, the grids cost more per sample).
 DEFAULT_SPP = {
-    "fog_isotropic": 256,
-    "fog_backward": 256,
-    "fog_forward": 256,
+    "fog_isotropic": 512,
+    "fog_backward": 512,
+    "fog_forward": 512,
     "smoke_ball": 256,
-    "yellow_smoke": 128,
-    "fire_ball": 128,
-    "underwater": 256,
+    "yellow_smoke": 256,
+    "fire_ball": 256,
+    "underwater": 512,
 }
 
 
