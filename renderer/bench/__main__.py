@@ -5,7 +5,7 @@ Other studies register here as subcommands (see COMMANDS)."""
 import importlib
 import sys
 
-COMMANDS = {"speed": "renderer.bench.speed"}
+COMMANDS = {"speed": "renderer.bench.speed", "convergence": "renderer.bench.convergence"}
 
 
 def main(argv: list[str]) -> int:

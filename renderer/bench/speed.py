@@ -65,6 +65,50 @@ def one_core(scene, spp: int) -> dict:
             "embree_share": timer.seconds / seconds, "seconds": seconds}
 
 
+def _surface_only_kernels():
+    """The integrator's kernels with every trace of media deleted before compiling: the
+    medium kernels' bodies are dropped and the stack updates of interface crossings become
+    no-ops. Built from the same source, uncached: the baseline of media_overhead."""
+    import importlib.util
+    import inspect
+
+    from ..integrator import kernels
+
+    src = inspect.getsource(kernels).replace("cache=True", "cache=False")
+    src = src.replace("    med = geo.medium[p]\n    if med >= 0:", "    med = -1\n    if med >= 0:")
+    spec = importlib.util.spec_from_loader("renderer.integrator._surface_only", loader=None)
+    module = importlib.util.module_from_spec(spec)
+    module.__package__ = "renderer.integrator"
+    exec(compile(src, "<surface-only kernels>", "exec"), module.__dict__)
+    return module
+
+
+def media_overhead(scene, spp: int, repeats: int = 3) -> float:
+    """Relative slow-down of the media-capable kernels against the same kernels with media
+    compiled out, on a scene without media (best of `repeats`, CPU time)."""
+    from ..compile import compile_scene
+    from ..integrator import wavefront
+    from ..integrator.wavefront import Tracer
+
+    cs = compile_scene(scene)
+    times = {}
+    for label, module in (("with media", wavefront.K), ("surface only", _surface_only_kernels())):
+        original = wavefront.K
+        wavefront.K = module
+        try:
+            tracer = Tracer(cs, scene.integrator)
+            tracer.trace(Film(cs.width, cs.height), 0, 1, 0)
+            best = float("inf")
+            for _ in range(repeats):
+                t = time.thread_time()
+                tracer.trace(Film(cs.width, cs.height), 1, spp, 0)
+                best = min(best, time.thread_time() - t)
+            times[label] = best
+        finally:
+            wavefront.K = original
+    return times["with media"] / times["surface only"] - 1.0
+
+
 def two_processes(scene, spp: int) -> float:
     """Samples/s with 2 worker processes, after their start-up (a warm-up pass), in M/s."""
     from ..render import render_progressive
@@ -100,6 +144,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--sizes", type=int, nargs="+", default=[128, 256])
     p.add_argument("--no-startup", action="store_true")
     args = p.parse_args(argv)
+    p_overhead = _scenes(128)["cornell"]
+    print(f"media support on a surface-only scene (cornell 128x128): "
+          f"{media_overhead(p_overhead, args.spp):+.1%} CPU time against kernels with media compiled out")
     if not args.no_startup:
         print(f"start-up: cold (compiling) {startup(True):.1f} s, warm (cached) {startup(False):.1f} s")
     print(f"{'scene':<18}{'size':>6}{'M samples/s':>13}{'M vertices/s':>14}{'Embree':>8}{'2 procs':>10}"

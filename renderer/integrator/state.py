@@ -18,7 +18,9 @@ class Paths(NamedTuple):
     """N rows; float32 unless noted.
 
     o, d (N, 3): next ray origin and unit direction; tmax (N,): its length (Embree writes
-    the hit distance into it). beta (N, 3): throughput. pid (N,) int32: slot in the batch's
+    the hit distance into it). gap (N,): how far o was pushed off the surface it leaves
+    (Embree has no tnear), measured along d; media integrate from o - gap d, so an
+    interface crossing loses no medium. beta (N, 3): throughput. pid (N,) int32: slot in the batch's
     radiance array. key (N,) uint64, dim (N,) int32: the path's random-number key and next
     dimension. depth (N,) int32: scattering events so far (Cycles' bounce count).
     crossings (N,) int32: pass-throughs (interfaces, transparent lobes), capped to end
@@ -30,6 +32,7 @@ class Paths(NamedTuple):
     o: np.ndarray
     d: np.ndarray
     tmax: np.ndarray
+    gap: np.ndarray
     beta: np.ndarray
     pid: np.ndarray
     key: np.ndarray
@@ -44,13 +47,15 @@ class Paths(NamedTuple):
 
 class Shadows(NamedTuple):
     """Up to 2 shadow rays per path per bounce (a medium next-event vertex and a surface or
-    medium-scattering one). o, d (S, 3), tmax (S,), contrib (S, 3) unoccluded radiance,
+    medium-scattering one). o, d (S, 3), tmax (S,), gap (S,) (as for paths: the push off
+    the surface, integrated by media), contrib (S, 3) unoccluded radiance,
     pid (S,) int32, key (S,) uint64, dim (S,) int32 (random numbers for tracking through
     media while walking interfaces), stack (S, MAX_STACK) int32, alive (S,) uint8."""
 
     o: np.ndarray
     d: np.ndarray
     tmax: np.ndarray
+    gap: np.ndarray
     contrib: np.ndarray
     pid: np.ndarray
     key: np.ndarray
@@ -62,7 +67,8 @@ class Shadows(NamedTuple):
 def allocate_paths(n: int) -> Paths:
     return Paths(
         o=np.zeros((n, 3), np.float32), d=np.zeros((n, 3), np.float32), tmax=np.zeros(n, np.float32),
-        beta=np.zeros((n, 3), np.float32), pid=np.zeros(n, np.int32), key=np.zeros(n, np.uint64),
+        gap=np.zeros(n, np.float32), beta=np.zeros((n, 3), np.float32), pid=np.zeros(n, np.int32),
+        key=np.zeros(n, np.uint64),
         dim=np.zeros(n, np.int32), depth=np.zeros(n, np.int32), crossings=np.zeros(n, np.int32),
         mis_pdf=np.zeros(n, np.float32), mis_o=np.zeros((n, 3), np.float32),
         stack=np.full((n, MAX_STACK), -1, np.int32), alive=np.zeros(n, np.uint8),
@@ -73,6 +79,7 @@ def allocate_shadows(n: int) -> Shadows:
     s = 2 * n
     return Shadows(
         o=np.zeros((s, 3), np.float32), d=np.zeros((s, 3), np.float32), tmax=np.zeros(s, np.float32),
-        contrib=np.zeros((s, 3), np.float32), pid=np.zeros(s, np.int32), key=np.zeros(s, np.uint64),
+        gap=np.zeros(s, np.float32), contrib=np.zeros((s, 3), np.float32), pid=np.zeros(s, np.int32),
+        key=np.zeros(s, np.uint64),
         dim=np.zeros(s, np.int32), stack=np.full((s, MAX_STACK), -1, np.int32), alive=np.zeros(s, np.uint8),
     )

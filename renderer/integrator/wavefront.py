@@ -99,8 +99,11 @@ class Tracer:
         while live > 0:
             prim, bu, bv = self.isect.intersect(ps.o[:live], ps.d[:live], ps.tmax[:live])
             self.stats["rays"] += live
-            count = K.shade(live, ps, prim, bu, bv, cs.geometry, cs.materials, self.lt, cs.lights.env_light,
-                            cs.lights.sun_rows, cs.media, self.cfg, self.L, sh)
+            count = 0
+            if cs.has_media:
+                count = K.shade_media(live, ps, prim, self.lt, cs.media, self.cfg, self.L, sh)
+            count = K.shade_surface(live, ps, prim, bu, bv, cs.geometry, cs.materials, self.lt,
+                                    cs.lights.env_light, cs.lights.sun_rows, self.cfg, self.L, sh, count)
             if count:
                 self._shadows(count)
             live = K.compact_paths(live, ps)
@@ -110,6 +113,8 @@ class Tracer:
         sh = self.sh
         self.stats["shadow_rays"] += count
         if not self.cs.needs_shadow_walk:
+            if self.cs.has_media:
+                K.shadow_media(count, sh, self.cs.media, self.cfg)
             occluded = self.isect.occluded(sh.o[:count], sh.d[:count], sh.tmax[:count])
             K.resolve_shadows(count, sh, occluded, self.L)
             return

@@ -43,7 +43,12 @@ def sample_distance(mt, stack, o, d, tmax, throughput, key, dim, uniform_channel
     if stack_has_grid(mt, stack):
         return track_free_flight(mt, stack, o, d, tmax, p, key, dim)
     sa, ss = stack_sigma(mt, stack)
-    t, scattered, weight = free_flight(sa, ss, tmax, p, uniform(key, dim), uniform(key, dim + 1))
+    if ss[0] <= 0.0 and ss[1] <= 0.0 and ss[2] <= 0.0:
+        # Nothing scatters: the segment's transmittance is the whole answer, exactly (a
+        # sampled collision could only absorb the path, adding noise and no information).
+        t, scattered, weight = tmax, False, beer((sa[0], sa[1], sa[2]), tmax)
+    else:
+        t, scattered, weight = free_flight(sa, ss, tmax, p, uniform(key, dim), uniform(key, dim + 1))
     le = (0.0, 0.0, 0.0)
     if stack_has_emission(mt, stack):
         st = (sa[0] + ss[0], sa[1] + ss[1], sa[2] + ss[2])
