@@ -12,7 +12,7 @@ IS_PY311 := -c 'import sys; sys.exit(sys.version_info[:2] != (3, 11))'
 .PHONY: help venv demo test lint bench extension clean distclean
 
 help:
-	@echo "make demo       render the main example to out/"
+	@echo "make demo       render the main example to out/ (renderer, then through the Blender add-on)"
 	@echo "make test       lint, then run the test suite"
 	@echo "make lint       ruff check only"
 	@echo "make bench      run the renderer benchmarks"
@@ -34,8 +34,11 @@ $(STAMP): requirements.txt
 
 venv: $(STAMP)
 
+# The main example twice: straight through the renderer (also writing its scene folder), then
+# built in Blender and rendered through the add-on the way a background script would.
 demo: $(STAMP)
 	$(PY) examples/demo.py
+	$(PY) examples/blender_cornell.py
 
 test: $(STAMP)
 	$(VENV)/bin/ruff check .
