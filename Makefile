@@ -9,7 +9,7 @@ your distribution's python3.11 package
 IS_PY311 := -c 'import sys; sys.exit(sys.version_info[:2] != (3, 11))'
 
 .DEFAULT_GOAL := help
-.PHONY: help venv demo test lint bench extension clean distclean
+.PHONY: help venv demo test lint bench extension clean distclean system-libs
 
 help:
 	@echo "make demo       render the main example to out/ (renderer, then through the Blender add-on)"
@@ -30,7 +30,19 @@ $(STAMP): requirements.txt
 	fi
 	@$(PY) $(IS_PY311) || { echo "$(VENV) is not Python 3.11: run 'make distclean' first. $(NEED_PY311)"; exit 1; }
 	$(PY) -m pip install --disable-pip-version-check -r requirements.txt
+	@$(PY) -c "import bpy" >/dev/null 2>&1 || $(MAKE) --no-print-directory system-libs
 	@touch $@
+
+# bpy loads a few X11/GL libraries from the system. Installed here only when missing, and only
+# where we may (root with apt-get); otherwise the message says what to install.
+BPY_LIBS := libx11-6 libxrender1 libxi6 libxkbcommon0 libsm6 libgl1
+system-libs:
+	@if [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null; then \
+		echo "Installing the system libraries bpy loads: $(BPY_LIBS)"; \
+		apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $(BPY_LIBS); \
+	else \
+		echo "bpy cannot load its system libraries; install: $(BPY_LIBS)"; exit 1; \
+	fi
 
 venv: $(STAMP)
 
