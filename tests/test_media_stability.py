@@ -84,13 +84,14 @@ def assert_close(film: Film, want, what: str = "", per_pixel: bool = False) -> N
         assert ok.all(), f"{what}: pixel {np.argwhere(~ok)[0]}: {m[~ok][:3]} vs {want[~ok][:3]}"
 
 
-def assert_binary_estimate(film: Film, want: np.ndarray, what: str = "") -> None:
-    """For a grey pure absorber every camera sample is 0 (absorbed) or 1 (reached the
-    environment of radiance 1), so the pixel mean is binomial with the exact variance
-    want (1 - want) / n: a z-test that needs no sample variance (which is 0 for pixels
-    where a rare absorption did not happen to occur)."""
-    # x^2 = x for samples of 0 and 1 (up to the rounding of the weight q / sum p q = 1)
-    assert np.allclose(film.sq, film.sum, rtol=1e-9, atol=1e-9), f"{what}: samples other than 0 and 1"
+def assert_bounded_estimate(film: Film, want: np.ndarray, what: str = "") -> None:
+    """A pure absorber in front of an environment of radiance 1: every camera sample lies in
+    [0, 1] (0 or 1 by delta tracking, or the transmittance itself when it is computed in
+    closed form), so the variance of a pixel mean is at most want (1 - want) / n
+    (Bhatia-Davis: Var <= (max - mean)(mean - min)). The z-test uses that bound, which needs
+    no sample variance (0 in pixels where a rare absorption did not happen to occur)."""
+    # x^2 <= x for samples in [0, 1] (up to the rounding of weights such as q / sum p q = 1)
+    assert (film.sq <= film.sum * (1 + 1e-9) + 1e-9).all(), f"{what}: samples outside [0, 1]"
     m, n = film.mean(), film.n[:, None].astype(np.float64)
     want = np.broadcast_to(np.asarray(want, np.float64), m.shape)
     var = want * (1.0 - want) / n
@@ -298,7 +299,7 @@ def test_albedo_in_furnace_box(render, albedo):
     chord = grid(np.ones((1, 1, 1)), sigma_a=(sigma_t,) * 3, p0=(-1.0,) * 3, p1=(1.0,) * 3)
     unscattered = expected_transmittance(scene, chord, sub=8)
     if albedo == 0.0:
-        assert_binary_estimate(film, unscattered, "albedo 0")
+        assert_bounded_estimate(film, unscattered, "albedo 0")
     elif albedo == 1.0:
         assert_close(film, 1.0, "albedo 1")
     else:
@@ -350,7 +351,7 @@ def test_tiny_grids_match_the_exact_optical_depth(render, case):
         density[1, 1, 1] = 4.0
     medium = grid(density, sigma_a=(0.7, 0.7, 0.7))
     scene = grid_in_view(medium, fov=10.0, spp=128)  # every ray crosses the box's front and back
-    assert_binary_estimate(render(scene), expected_transmittance(scene, medium), case)
+    assert_bounded_estimate(render(scene), expected_transmittance(scene, medium), case)
 
 
 def test_512x1x1_grid_matches_the_exact_optical_depth(render):
@@ -362,7 +363,7 @@ def test_512x1x1_grid_matches_the_exact_optical_depth(render):
     medium = grid(np.clip(profile, 0.0, None)[None, None, :], sigma_a=(0.8, 0.8, 0.8), p0=(-1.2, -0.4, -0.4),
                   p1=(1.2, 0.4, 0.4), to_world=to_world)
     scene = grid_in_view(medium, size=8, spp=256)
-    assert_binary_estimate(render(scene), expected_transmittance(scene, medium, sub=8), "512x1x1")
+    assert_bounded_estimate(render(scene), expected_transmittance(scene, medium, sub=8), "512x1x1")
 
 
 def test_grid_as_the_world_medium(render):
@@ -373,7 +374,7 @@ def test_grid_as_the_world_medium(render):
     scene = Scene(camera=camera_at((0.1, 0.05, 0.2), 50.0, look=(0.3, -0.2, -1.0)), film=FilmSettings(8, 8),
                   integrator=IntegratorSettings(spp=128), media=[medium], medium=medium.name,
                   environment=Environment((1.0, 1.0, 1.0)))
-    assert_binary_estimate(render(scene), expected_transmittance(scene, medium), "world grid")
+    assert_bounded_estimate(render(scene), expected_transmittance(scene, medium), "world grid")
 
 
 def _dense_voxel_grid(background: float) -> tuple[Medium, Scene]:
@@ -393,7 +394,7 @@ def test_density_contrast_of_a_million(render):
     """max / mean density = 1e7 / (1 + 1e7 / 128^3) = 1.7e6."""
     medium, scene = _dense_voxel_grid(1.0)
     assert medium.density.max() / medium.density.mean(dtype=np.float64) > 1e6
-    assert_binary_estimate(render(scene), expected_transmittance(scene, medium, sub=4), "contrast")
+    assert_bounded_estimate(render(scene), expected_transmittance(scene, medium, sub=4), "contrast")
 
 
 def test_one_dense_voxel_in_a_large_empty_grid_is_fast(render):
@@ -403,7 +404,7 @@ def test_one_dense_voxel_in_a_large_empty_grid_is_fast(render):
     start = time.perf_counter()
     film = render(scene)
     seconds = time.perf_counter() - start
-    assert_binary_estimate(film, expected_transmittance(scene, medium, sub=4), "sparse")
+    assert_bounded_estimate(film, expected_transmittance(scene, medium, sub=4), "sparse")
     assert seconds < 20.0, seconds
 
 
@@ -435,7 +436,7 @@ def test_transformed_grid_matches_the_exact_optical_depth(render, name):
                   to_world=to_world)
     scene = grid_in_view(medium, half=1.8, size=12, spp=256)
     # pixels on the box's silhouette are discontinuous: many sub-pixel rays
-    assert_binary_estimate(render(scene), expected_transmittance(scene, medium, sub=16), name)
+    assert_bounded_estimate(render(scene), expected_transmittance(scene, medium, sub=16), name)
 
 
 # -------------------------------------------------------------------------- bad input
