@@ -5,8 +5,9 @@ takes (size, spp) and returns a Scene; BUILDERS maps the gallery names to them. 
 sit in the Cornell box of examples.scenes ([-1, 1]^3, open toward the camera at +z), so
 one unit is half the box.
 
-Stand-ins: the paper's Ajax bust is replaced by a small closed mesh built here (`bust`:
-an icosphere head on a box plinth); the pbrt cloud data of Fig. 2 is not reproduced.
+Stand-ins: the paper's Ajax bust is replaced by a small mesh built here (`bust`: an
+icosphere head on a box plinth) in the fire, and by a sphere where it holds water; the
+pbrt cloud data of Fig. 2 is not reproduced.
 """
 
 from __future__ import annotations
@@ -231,9 +232,10 @@ def widen_lamp(scene: Scene, factor: float) -> Scene:
 
 
 def underwater(size: int = 128, spp: int = 64) -> Scene:
-    """Fig. 8: the bust made of water: a dielectric surface (ior 1.33) around the Fig. 8
-    medium. The bust here is about a unit tall while the paper's Ajax is tens of units, so
-    the medium's `scale` (which multiplies both sigmas) stands in for that size. The lamp is
+    """Fig. 8: Ajax made of water, here a water sphere: a dielectric surface (ior 1.33)
+    around the Fig. 8 medium. (A sphere, not `bust()`: a medium's mesh must be one closed
+    surface.) It is about a unit across while the paper's Ajax is tens of units, so the
+    medium's `scale` (which multiplies both sigmas) stands in for that size. The lamp is
     widened (same power) to tame the glass's caustics."""
     scene = widen_lamp(cornell_box(size, spp, boxes=False), 2.5)
     scene.integrator.max_bounces = MEDIA_MAX_BOUNCES
