@@ -57,10 +57,16 @@ def box(name: str, center: tuple[float, float, float], half: float, material) ->
     return obj
 
 
+def ensure_nodes(datablock) -> None:
+    """Turn on node shading; Blender 5.0 always uses nodes and deprecates the switch."""
+    if bpy.app.version < (5, 0, 0):
+        datablock.use_nodes = True
+
+
 def node_material(name: str) -> tuple[bpy.types.Material, bpy.types.NodeTree, bpy.types.Node]:
     """A material with an empty node tree and its output node."""
     material = bpy.data.materials.new(name)
-    material.use_nodes = True
+    ensure_nodes(material)
     tree = material.node_tree
     tree.nodes.clear()
     output = tree.nodes.new("ShaderNodeOutputMaterial")
@@ -118,7 +124,7 @@ def add_camera(scene: bpy.types.Scene, location, rotation_deg, lens: float = 35.
 
 def black_world(scene: bpy.types.Scene) -> None:
     world = bpy.data.worlds.new("Black")
-    world.use_nodes = True
+    ensure_nodes(world)
     background = world.node_tree.nodes.get("Background")
     background.inputs["Color"].default_value = (0.0, 0.0, 0.0, 1.0)
     background.inputs["Strength"].default_value = 0.0

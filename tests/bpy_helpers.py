@@ -351,12 +351,20 @@ def floor_plane(name: str, half: float, material, z: float = 0.0):
                       [(0, 1, 2, 3)], material)
 
 
+def ensure_nodes(datablock) -> None:
+    """Turn on node shading; Blender 5.0 always uses nodes and deprecates the switch."""
+    import bpy
+
+    if bpy.app.version < (5, 0, 0):
+        datablock.use_nodes = True
+
+
 def principled_material(name: str, **inputs):
     """A Principled BSDF material; keyword names are input names with spaces as underscores."""
     import bpy
 
     material = bpy.data.materials.new(name)
-    material.use_nodes = True
+    ensure_nodes(material)
     bsdf = material.node_tree.nodes["Principled BSDF"]
     for key, value in inputs.items():
         if key == "distribution":
@@ -384,7 +392,7 @@ def world_color(scene, color, strength: float = 1.0) -> None:
     import bpy
 
     world = bpy.data.worlds.new("World")
-    world.use_nodes = True
+    ensure_nodes(world)
     background = world.node_tree.nodes["Background"]
     background.inputs["Color"].default_value = (*color, 1.0)
     background.inputs["Strength"].default_value = strength

@@ -47,7 +47,7 @@ def capture_render_export():
 
 def node_material(name):
     material = bpy.data.materials.new(name)
-    material.use_nodes = True
+    H.ensure_nodes(material)
     tree = material.node_tree
     tree.nodes.clear()
     return material, tree, tree.nodes.new("ShaderNodeOutputMaterial")
@@ -200,7 +200,7 @@ def build_main_scene():
     camera = bpy.data.objects.new("Camera", camera_data); camera.location = (0, -10, 1)
     camera.rotation_euler = (math.radians(90), 0, 0); scene.collection.objects.link(camera)
     scene.camera = camera
-    world = bpy.data.worlds.new("Sky World"); world.use_nodes = True
+    world = bpy.data.worlds.new("Sky World"); H.ensure_nodes(world)
     tree = world.node_tree
     background = tree.nodes["Background"]
     background.inputs["Color"].default_value = (0.1, 0.2, 0.3, 1)

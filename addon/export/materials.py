@@ -12,6 +12,8 @@ Rules that follow from how Cycles shades (see docs in addon/README-section.md):
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 
 from renderer.scene import Lobe, Material, Medium
@@ -123,6 +125,13 @@ def viewport_color_material(blender_material) -> Material:
     return Material(blender_material.name_full, lobes=[Lobe("diffuse", color=color)])
 
 
+def uses_nodes(datablock) -> bool:
+    """The "Use Nodes" switch of Blender < 5.0 (5.0 always uses nodes and deprecates it)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DeprecationWarning)
+        return bool(getattr(datablock, "use_nodes", True))
+
+
 def active_output(node_tree):
     """The output node Cycles uses (active, target All or Cycles)."""
     return node_tree.get_output_node("CYCLES") if node_tree is not None else None
@@ -132,7 +141,7 @@ def convert_material(blender_material, messages: Messages) -> MaterialExport:
     name = blender_material.name_full
     subject = material_subject(name)
     tree = blender_material.node_tree
-    if tree is None or not getattr(blender_material, "use_nodes", True):
+    if tree is None or not uses_nodes(blender_material):
         return MaterialExport(viewport_color_material(blender_material), None)
     output = active_output(tree)
     if output is None:

@@ -20,12 +20,12 @@ from .lights import area_light, point_light, spot_light, sun_light
 from .materials import MaterialLibrary
 from .mesh import LocalGeometry, MeshPart, build_meshes, read_geometry, transform
 from .messages import Messages, object_subject
+from .volumes import VolumeExporter, is_smoke_domain
 from .world import world_environment
 
 GEOMETRY_TYPES = {"MESH", "CURVE", "SURFACE", "FONT", "META"}
 RAY_VISIBILITY = ("camera", "diffuse", "glossy", "transmission", "volume_scatter", "shadow")
-UNSUPPORTED_TYPES = {"CURVES": "hair curves", "POINTCLOUD": "point clouds", "VOLUME": "volume objects",
-                     "GREASEPENCIL": "Grease Pencil"}
+UNSUPPORTED_TYPES = {"CURVES": "hair curves", "POINTCLOUD": "point clouds", "GREASEPENCIL": "Grease Pencil"}
 
 
 @dataclass
@@ -33,6 +33,7 @@ class ExportResult:
     scene: Scene
     warnings: list[str] = field(default_factory=list)
     light_names: list[str] = field(default_factory=list)  # Blender object of each scene.lights entry
+    volume_stats: list[str] = field(default_factory=list)  # size and memory of each volume grid
 
 
 def integrator_settings(haze_settings) -> IntegratorSettings:
@@ -162,11 +163,14 @@ def export_scene(depsgraph, film: Film | None = None, render_depsgraph: bool = T
     lights: list = []
     light_names: list[str] = []
     emitters: list = []
+    volumes = VolumeExporter(library, messages, scene.frame_current, scene.frame_subframe)
     for instance in depsgraph.object_instances:
         if not is_rendered(instance, render_depsgraph):
             continue
         kind = instance.object.type
-        if kind in GEOMETRY_TYPES:
+        if kind == "VOLUME" or (kind == "MESH" and is_smoke_domain(instance.object)):
+            volumes.add(instance, instance_group(instance))
+        elif kind in GEOMETRY_TYPES:
             collector.add(instance)
         elif kind == "LIGHT":
             add_light(instance, library, lights, light_names, emitters, messages)
@@ -174,10 +178,11 @@ def export_scene(depsgraph, film: Film | None = None, render_depsgraph: bool = T
             messages.warn(object_subject(instance.object.name),
                           f"{UNSUPPORTED_TYPES[kind]} are not supported by Haze and are not rendered")
     environment, world_medium = world_environment(scene.world, messages)
-    meshes = collector.meshes() + emitters
+    volume_meshes, volume_media = volumes.export()
+    meshes = collector.meshes() + emitters + volume_meshes
     used_materials = {name for mesh in meshes for name in mesh.materials}
     used_media = {mesh.medium for mesh in meshes if mesh.medium is not None}
-    media = library.media(used_media) + ([world_medium] if world_medium is not None else [])
+    media = library.media(used_media) + volume_media + ([world_medium] if world_medium is not None else [])
     result = Scene(
         camera=camera,
         film=film,
@@ -189,4 +194,4 @@ def export_scene(depsgraph, film: Film | None = None, render_depsgraph: bool = T
         environment=environment,
         medium=world_medium.name if world_medium is not None else None,
     )
-    return ExportResult(result, messages.warnings, light_names)
+    return ExportResult(result, messages.warnings, light_names, volumes.stats)

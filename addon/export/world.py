@@ -12,7 +12,7 @@ import numpy as np
 
 from renderer.scene import Environment, Medium
 
-from .materials import active_output, volume_medium
+from .materials import active_output, uses_nodes, volume_medium
 from .messages import Messages
 from .nodes import ShaderGraph, as_volume_terms, rgb
 
@@ -26,7 +26,7 @@ def world_environment(world, messages: Messages) -> tuple[Environment, Medium | 
     if world is None:
         return Environment(), None
     tree = world.node_tree
-    if tree is None or not getattr(world, "use_nodes", True):
+    if tree is None or not uses_nodes(world):
         return Environment(radiance=rgb(np.asarray(world.color[:3], dtype=np.float64))), None
     output = active_output(tree)
     if output is None:

@@ -1,0 +1,107 @@
+"""Smoke and fire domains (gas fluid simulations) from their OpenVDB cache files.
+
+A gas domain's grids for the current frame are in <cache directory>/data/fluid_data_NNNN.vdb
+(Mantaflow's OpenVDB cache; NNNN = frame, zero-padded to 4). The file is loaded into a
+temporary volume object so the same geometry-node sampler reads it (never the simulation
+itself: nothing is baked). Cell (i, j, k) of the simulation is voxel (i, j, k) of the file's
+index space; the base resolution fills the domain mesh's bounding box (the texture space
+Cycles places smoke in), cell i centred at (i + 0.5) / res of it.
+
+Attributes as Cycles reads them from a domain (rna_fluid: *_grid_get):
+  density      the "density" grid
+  flame        the "flame" grid
+  heat         the simulation's heat (stored as "temperature") times 0.5
+  temperature  flame mapped to kelvin-ish units: ignition + flame x (max temp - ignition)
+               where flame > 0.01, else 0 (Principled Volume multiplies it by its Temperature)
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .messages import Messages, object_subject
+
+CACHE_GRIDS = {"density": "density", "flame": "flame", "heat": "temperature", "temperature": "flame"}
+FLAME_THRESHOLD = 0.01  # flame at or below this has temperature 0 (rna_FluidModifier_temperature_grid_get)
+
+
+def fluid_domain(obj):
+    for modifier in obj.modifiers:
+        if modifier.type == "FLUID" and modifier.fluid_type == "DOMAIN":
+            return modifier.domain_settings
+    return None
+
+
+def base_resolution(size: np.ndarray, resolution_max: int) -> np.ndarray:
+    """Blender's base resolution of a domain of (object-scaled) size: the longest side gets
+    `resolution_max` cells, the others as many cells of that size as fit (rounded, >= 4)."""
+    longest = int(np.argmax(size))
+    cell = size[longest] / resolution_max
+    res = np.maximum(np.floor(size / cell + 0.5).astype(np.int64), 4)
+    res[longest] = resolution_max
+    return res
+
+
+def mesh_bounds(mesh) -> tuple[np.ndarray, np.ndarray]:
+    positions = np.empty(len(mesh.vertices) * 3, np.float64)
+    mesh.vertices.foreach_get("co", positions)
+    positions = positions.reshape(-1, 3)
+    return positions.min(axis=0), positions.max(axis=0)
+
+
+def cache_file(directory: str, frame: int):
+    from pathlib import Path
+
+    return Path(directory) / "data" / f"fluid_data_{frame:04d}.vdb"
+
+
+def smoke_cache_source(obj, frame: int, messages: Messages, material):
+    """The VolumeSource of a gas domain at `frame`, or None (with a warning) if its cache
+    holds nothing readable for that frame."""
+    import bpy
+
+    from .volumes import VolumeSource
+
+    original = obj.original
+    subject = object_subject(original.name)
+    settings = fluid_domain(original)
+    if settings is None or original.type != "MESH" or len(original.data.vertices) == 0:
+        messages.warn(subject, "is a fluid domain without a mesh box; it is not rendered")
+        return None
+    if settings.cache_data_format != "OPENVDB":
+        messages.warn(subject, f"its fluid cache format is {settings.cache_data_format}; Haze reads only "
+                               "OpenVDB caches, the domain is not rendered")
+        return None
+    path = cache_file(bpy.path.abspath(settings.cache_directory), frame)
+    if not path.is_file():
+        messages.warn(subject, f"no cached smoke for frame {frame} ({path}); bake the simulation (or set "
+                               "the frame) to render it")
+        return None
+    if settings.use_noise:
+        messages.warn(subject, "noise (high-resolution) grids are not read; Haze renders the base resolution")
+    if settings.use_adaptive_domain:
+        messages.warn(subject, "adaptive domains are rendered as if the grid filled the whole domain box")
+    low, high = mesh_bounds(original.data)
+    size = np.abs((high - low) * np.array(original.scale, np.float64))
+    if np.any(size <= 0.0):
+        messages.warn(subject, "is a flat fluid domain; it is not rendered")
+        return None
+    source = VolumeSource(("smoke", original.name_full, str(path), material.name_full if material else ""),
+                          subject, None, str(path), material, float(settings.clipping), dict(CACHE_GRIDS),
+                          (low, high))
+    source.domain_res = base_resolution(size, int(settings.resolution_max))
+    source.flame_range = (float(settings.flame_ignition), float(settings.flame_max_temp))
+    return source
+
+
+def smoke_attributes(raw: dict[str, np.ndarray], source) -> dict[str, np.ndarray]:
+    """Cache grids (keyed by the attribute they serve) converted to Cycles' attribute values."""
+    converted = dict(raw)
+    if "heat" in converted:
+        converted["heat"] = converted["heat"] * np.float32(0.5)
+    if "temperature" in converted:
+        ignition, maximum = source.flame_range
+        flame = converted["temperature"]
+        converted["temperature"] = np.where(flame > FLAME_THRESHOLD, ignition + flame * (maximum - ignition),
+                                            0.0).astype(np.float32)
+    return converted
