@@ -91,6 +91,9 @@ def render_command(args) -> int:
     seconds = time.perf_counter() - t0
     samples = last.spp * scene.film.width * scene.film.height
     print(msg, file=sys.stderr)
+    if last.film.nonfinite[0]:
+        bad = int(last.film.nonfinite[0])
+        print(f"warning: {bad} path values were NaN or infinite and were counted as 0", file=sys.stderr)
     print(f"{last.spp} spp, {seconds:.2f} s, {samples / seconds / 1e6:.3f} M samples/s", file=sys.stderr)
     return 0
 

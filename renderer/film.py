@@ -21,11 +21,13 @@ class Film:
         self.sum = np.zeros((p, 3), np.float64)  # per pixel and channel
         self.sq = np.zeros((p, 3), np.float64)
         self.n = np.zeros(p, np.int64)  # samples per pixel
+        self.nonfinite = np.zeros(1, np.int64)  # path values that were NaN or inf (added as 0)
 
     def add(self, other: Film) -> None:
         self.sum += other.sum
         self.sq += other.sq
         self.n += other.n
+        self.nonfinite += other.nonfinite
 
     @property
     def spp(self) -> int:

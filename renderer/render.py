@@ -140,7 +140,7 @@ def _worker_trace(start: int, k: int, seed: int):
     film = Film(cs.width, cs.height)
     t = time.perf_counter()
     _worker_tracer.trace(film, start, k, seed)
-    return film.sum, film.sq, film.n, k, time.perf_counter() - t
+    return film, k, time.perf_counter() - t
 
 
 def _render_in_workers(cs, settings, film, chunker, t0, target_error, workers) -> Iterator[Progress]:
@@ -160,10 +160,8 @@ def _render_in_workers(cs, settings, film, chunker, t0, target_error, workers) -
                 return
             done, pending = wait(pending, return_when=FIRST_COMPLETED)
             for fut in done:
-                s, sq, n, k, seconds = fut.result()
-                film.sum += s
-                film.sq += sq
-                film.n += n
+                part, k, seconds = fut.result()
+                film.add(part)
                 chunker.measured(k, seconds)
             yield _progress(film, settings, t0)
             if _should_stop(settings, film, t0, target_error):

@@ -595,13 +595,16 @@ def compact_shadows(n, sh, remaining):
 
 
 @njit(cache=True, error_model="numpy", _nrt=False)
-def splat(n, L, pixel_of_pid, film_sum, film_sq, film_n):
-    """Add paths 0..n-1 of the batch to the film (per-pixel sum, sum of squares, count)."""
+def splat(n, L, pixel_of_pid, film_sum, film_sq, film_n, film_nonfinite):
+    """Add paths 0..n-1 of the batch to the film (per-pixel sum, sum of squares, count).
+    A non-finite path value (a bug, never expected) is counted and added as 0, so one bad
+    path cannot ruin an image but cannot pass unnoticed either."""
     for i in range(n):
         px = pixel_of_pid[i]
         for c in range(3):
             v = L[i, c]
             if not np.isfinite(v):
+                film_nonfinite[0] += 1
                 v = 0.0
             film_sum[px, c] += v
             film_sq[px, c] += v * v

@@ -107,7 +107,7 @@ class Tracer:
             if count:
                 self._shadows(count)
             live = K.compact_paths(live, ps)
-        K.splat(n, self.L, self.pixel_of_pid, film.sum, film.sq, film.n)
+        K.splat(n, self.L, self.pixel_of_pid, film.sum, film.sq, film.n, film.nonfinite)
 
     def _shadows(self, count: int) -> None:
         sh = self.sh
