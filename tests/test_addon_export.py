@@ -559,3 +559,51 @@ def test_groups_muted_nodes_and_unsupported_closures(exported):
     assert lobes["diffuse"].color == pytest.approx((0.2, 0.7, 0.1))  # Translucent's fallback
     assert "Material 'Grouped', node 'Leaf': Translucent BSDF shaders are not supported by Haze; " \
            "rendered as a Diffuse BSDF of its Color" in exported["main"]["warnings"]
+
+
+REGISTER_BODY = r'''
+import bpy
+import addon
+
+
+def compat(name):
+    return "HAZE" in getattr(bpy.types, name).COMPAT_ENGINES
+
+
+def state():
+    return {
+        "engine": "HAZE" in {getattr(e, "bl_idname", "") for e in bpy.types.RenderEngine.__subclasses__()},
+        "settings": hasattr(bpy.types.Scene, "haze"),
+        "operator": hasattr(bpy.types, "EXPORT_SCENE_OT_haze"),
+        "panels": {name: compat(name) for name in ("RENDER_PT_format", "RENDER_PT_color_management",
+                                                   "DATA_PT_lens", "EEVEE_MATERIAL_PT_surface",
+                                                   "EEVEE_WORLD_PT_volume", "DATA_PT_EEVEE_light",
+                                                   "DATA_PT_light", "RENDER_PT_freestyle")},
+        "own_panel": hasattr(bpy.types, "HAZE_RENDER_PT_sampling"),
+    }
+
+
+def main():
+    addon.register()
+    registered = state()
+    addon.unregister()
+    unregistered = state()
+    addon.register()  # a second cycle works too (add-on disabled and enabled again)
+    again = state()
+    addon.unregister()
+    return {"registered": registered, "unregistered": unregistered, "again": again}
+'''
+
+
+def test_register_and_unregister_cleanly(tmp_path):
+    run = run_blender(REGISTER_BODY, tmp_path, timeout=300)
+    assert run.returncode == 0 and run.result, run.describe()
+    registered, unregistered = run.result["registered"], run.result["unregistered"]
+    assert all(registered[key] for key in ("engine", "settings", "own_panel", "operator"))
+    assert registered["panels"] == {"RENDER_PT_format": True, "RENDER_PT_color_management": True,
+                                    "DATA_PT_lens": True, "EEVEE_MATERIAL_PT_surface": True,
+                                    "EEVEE_WORLD_PT_volume": True, "DATA_PT_EEVEE_light": True,
+                                    "DATA_PT_light": False, "RENDER_PT_freestyle": False}
+    assert not any(unregistered[key] for key in ("engine", "settings", "own_panel", "operator"))
+    assert not any(unregistered["panels"].values())
+    assert run.result["again"] == registered
