@@ -566,13 +566,25 @@ import bpy
 import addon
 
 
+def engine_selectable():
+    render = bpy.context.scene.render
+    previous = render.engine
+    try:
+        render.engine = "HAZE"
+    except TypeError:  # not a registered engine
+        return False
+    selected = render.engine == "HAZE"
+    render.engine = previous
+    return selected
+
+
 def compat(name):
     return "HAZE" in getattr(bpy.types, name).COMPAT_ENGINES
 
 
 def state():
     return {
-        "engine": "HAZE" in {getattr(e, "bl_idname", "") for e in bpy.types.RenderEngine.__subclasses__()},
+        "engine": engine_selectable(),
         "settings": hasattr(bpy.types.Scene, "haze"),
         "operator": hasattr(bpy.types, "EXPORT_SCENE_OT_haze"),
         "panels": {name: compat(name) for name in ("RENDER_PT_format", "RENDER_PT_color_management",
