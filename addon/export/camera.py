@@ -66,6 +66,8 @@ def export_camera(camera_object, film: Film, render, scene_name: str, messages: 
         messages.warn(subject, "depth of field is not supported and is ignored (pinhole camera)")
     if render.pixel_aspect_x != render.pixel_aspect_y:
         messages.warn(f"Scene '{scene_name}'", "non-square pixel aspect is ignored")
+    if getattr(render, "use_border", False):
+        messages.warn(f"Scene '{scene_name}'", "Render Region is ignored; the whole frame is rendered")
     try:
         to_world = rigid_matrix(camera_object.matrix_world)
     except ValueError:
