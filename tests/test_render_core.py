@@ -144,6 +144,32 @@ def test_nee_bsdf_and_mis_agree():
     assert (ses["mis"] <= np.maximum(ses["nee"], ses["bsdf"])).all()
 
 
+@pytest.mark.parametrize("lobes", [[], [Lobe("transparent", color=(1.0, 1.0, 1.0))]],
+                         ids=["emitter", "transparent"])
+def test_light_sampling_agrees_with_bsdf_sampling_for_a_low_wide_light(lobes):
+    """A 1 x 0.5 one-sided emitter 0.5 above a diffuse floor, direct light only: shadow rays
+    at grazing angles once hit the light itself (origin offset, direction from the surface
+    point) and lost 80% of the light."""
+    fv, fi = quad((0, 0, 0), (2, 0, 0), (0, 2, 0))
+    lv, li = quad((0, 0, 0.5), (0, 0.25, 0), (0.5, 0, 0))
+    cam = np.eye(4)
+    cam[:3, 3] = (0, 0, 3)
+
+    def film(sampling: str) -> Film:
+        return render_film(Scene(
+            camera=Camera(cam, fov=30.0), film=FilmSettings(16, 16),
+            integrator=IntegratorSettings(spp=64, max_bounces=0, sampling=sampling, seed=3),
+            materials=[Material("floor", [Lobe("diffuse", color=(0.8, 0.8, 0.8))]),
+                       Material("light", lobes, emission=(5.0, 5.0, 5.0))],
+            meshes=[Mesh("floor", fv, fi, ["floor"]), Mesh("light", lv, li, ["light"])]))
+
+    nee, bsdf = film("nee"), film("bsdf")
+    k = nee.mean().shape[0]
+    se = np.sqrt(nee.variance_of_mean().sum(axis=0) + bsdf.variance_of_mean().sum(axis=0)) / k
+    diff = nee.mean().mean(axis=0) - bsdf.mean().mean(axis=0)
+    assert (np.abs(diff) <= Z * se).all(), (diff, se)
+
+
 def test_same_image_for_any_batch_size_and_worker_count():
     scene = cornell_box(size=32, spp=4)
     scene.integrator.batch_size = 4096

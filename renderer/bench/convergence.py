@@ -175,6 +175,29 @@ def stack_reference(images: np.ndarray, spp: int, seconds: float) -> Reference:
     return Reference(images.mean(axis=0), images.var(axis=0, ddof=1) / k, spp * k, seconds)
 
 
+def box_mean(image: np.ndarray, radius: int) -> np.ndarray:
+    """Mean over the (2 radius + 1)^2 window around each pixel, edges repeated."""
+    padded = np.pad(image, ((radius, radius), (radius, radius), (0, 0)), mode="edge")
+    sums = np.cumsum(np.cumsum(padded, axis=0), axis=1)
+    sums = np.pad(sums, ((1, 0), (1, 0), (0, 0)))
+    w = 2 * radius + 1
+    h, wd = image.shape[:2]
+    return (sums[w:w + h, w:w + wd] - sums[:h, w:w + wd] - sums[w:w + h, :wd] + sums[:h, :wd]) / (w * w)
+
+
+def robust_estimate(film: Film) -> float:
+    """Film.rel_mse_estimate with each pixel's squared mean in the denominator replaced by
+    min(mean, 5x5 box mean)^2. A firefly raises a pixel's variance and its mean together,
+    so the current estimate's per-pixel term stays below ~1 however wrong the pixel is;
+    the neighbourhood mean barely moves. Measured here to propose it for the renderer."""
+    if film.spp < 2:
+        return math.nan
+    shape = (film.height, film.width, 3)
+    mean = film.mean().reshape(shape)
+    level = np.minimum(mean, box_mean(mean, 2))
+    return float(np.mean(film.variance_of_mean().reshape(shape) / (level * level + REL_EPS)))
+
+
 # ------------------------------------------------------------------------------ curves
 
 
@@ -188,21 +211,26 @@ class Curve:
     relmse: list[float] = field(default_factory=list)
     rmse: list[float] = field(default_factory=list)
     estimate: list[float] = field(default_factory=list)  # Haze's own running estimate (nan for Cycles)
+    robust: list[float] = field(default_factory=list)  # the firefly-proof estimate proposed below
     startup: float = math.nan  # fixed cost per render: intercept of seconds against spp
 
-    def add(self, seconds: float, spp: int, relmse: float, rmse: float, estimate: float = math.nan) -> None:
+    def add(self, seconds: float, spp: int, relmse: float, rmse: float, estimate: float = math.nan,
+            robust: float = math.nan) -> None:
         self.seconds.append(seconds)
         self.spp.append(spp)
         self.relmse.append(relmse)
         self.rmse.append(rmse)
         self.estimate.append(estimate)
+        self.robust.append(robust)
 
     def fit_startup(self) -> None:
         """The part of the wall time that does not grow with samples (compile, process start,
-        Cycles' scene sync and volume octree), from a straight-line fit."""
+        Cycles' scene sync and volume octree): the time to the first image less the sampling
+        in it, at the steady seconds per sample of the later half of the curve."""
         if len(self.spp) >= 3:
-            slope, intercept = np.polyfit(self.spp[1:], self.seconds[1:], 1)
-            self.startup = max(float(intercept), 0.0)
+            half = len(self.spp) // 2
+            slope = (self.seconds[-1] - self.seconds[half]) / max(self.spp[-1] - self.spp[half], 1)
+            self.startup = max(self.seconds[0] - self.spp[0] * slope, 0.0)
 
     def at_budget(self, budget: float) -> int | None:
         """Index of the last image available within `budget` seconds."""
@@ -251,7 +279,7 @@ def haze_curve(scene: Scene, label: str, overrides: dict, reference: Reference, 
         for frame in frames:
             image = frame.film.mean().reshape(shape)
             curve.add(frame.elapsed, frame.spp, reference.relmse(image), reference.rmse(image),
-                      frame.error_estimate)
+                      frame.error_estimate, robust_estimate(frame.film))
             if curve.relmse[-1] < floor:
                 break
     finally:
@@ -413,17 +441,18 @@ def fmt(value: float, digits: int = 3) -> str:
 
 def budget_table(result: SceneResult, budgets: list[float]) -> list[str]:
     """Markdown rows: per budget and curve, the last image available by then."""
-    rows = ["| budget s | curve | seconds | spp | relMSE | RMSE | estimated relMSE |",
-            "|---:|---|---:|---:|---:|---:|---:|"]
+    rows = ["| budget s | curve | seconds | spp | relMSE | RMSE | Haze's estimate | proposed estimate |",
+            "|---:|---|---:|---:|---:|---:|---:|---:|"]
     curves = result.haze + [c for c in (result.cycles, result.cycles_vs_haze) if c is not None]
     for budget in budgets:
         for curve in curves:
             i = curve.at_budget(budget)
             if i is None:
-                rows.append(f"| {budget:g} | {curve.label} | - | - | - | - | - |")
+                rows.append(f"| {budget:g} | {curve.label} | - | - | - | - | - | - |")
                 continue
             rows.append(f"| {budget:g} | {curve.label} | {curve.seconds[i]:.2f} | {curve.spp[i]} | "
-                        f"{fmt(curve.relmse[i])} | {fmt(curve.rmse[i])} | {fmt(curve.estimate[i])} |")
+                        f"{fmt(curve.relmse[i])} | {fmt(curve.rmse[i])} | {fmt(curve.estimate[i])} | "
+                        f"{fmt(curve.robust[i])} |")
     return rows
 
 
@@ -474,6 +503,23 @@ def reference_rows(results: list[SceneResult]) -> list[str]:
         rows.append(f"| {r.scene.name} | {h.spp} | {fmt(h.noise_relmse, 2)} | {h.seconds:.0f} | "
                     f"{c.spp if c else '-'} | {fmt(c.noise_relmse, 2) if c else '-'} | "
                     f"{f'{c.seconds:.0f}' if c else '-'} | {ratio} |")
+    return rows
+
+
+def estimate_rows(results: list[SceneResult]) -> list[str]:
+    """The online estimates against the true relMSE along each scene's default Haze curve."""
+    rows = ["| scene | spp | true relMSE | Haze's estimate | true / estimate | proposed estimate | "
+            "true / proposed |", "|---|---:|---:|---:|---:|---:|---:|"]
+    for result in results:
+        curve = result.haze[0]
+        spp = np.asarray(curve.spp)
+        wanted = [n for n in (4, 16, 64, 256, 1024) if spp.max() >= n / 2]
+        picks = sorted({int(np.argmin(np.abs(spp - n))) for n in wanted})
+        for i in picks:
+            true = curve.relmse[i]
+            rows.append(f"| {result.scene.name} | {curve.spp[i]} | {fmt(true)} | {fmt(curve.estimate[i])} | "
+                        f"{fmt(true / curve.estimate[i], 2)} | {fmt(curve.robust[i])} | "
+                        f"{fmt(true / curve.robust[i], 2)} |")
     return rows
 
 
@@ -628,6 +674,7 @@ def report(results: list[SceneResult], options: Options, command: str, load_befo
              "along relMSE ~ 1/(t - start-up) past the last measured point.", "",
              "## Time to relMSE", ""]
     lines += summary_table(results) + ["", "## References", ""] + reference_rows(results)
+    lines += ["", "## Online error estimate (default setting)", ""] + estimate_rows(results)
     lines += ["", "Settings: " + "; ".join(f"{k}: {v}" for k, v in SETTING_NOTES.items()), ""]
     for result in results:
         lines += ["", f"## {result.scene.name}: {result.scene.description}", ""]
