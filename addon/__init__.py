@@ -25,7 +25,7 @@ bl_info = {
     "description": "Volumetric path tracer (numpy, numba, Embree)",
 }
 
-MODULE_NAMES = ("properties", "engine", "ui", "operators")
+MODULE_NAMES = ("properties", "engine", "ui", "operators", "operators_volume")
 
 
 def _modules():

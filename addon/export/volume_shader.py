@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .materials import uses_nodes
 from .messages import Messages
 from .nodes import VALUE_HANDLERS, ShaderGraph, convert, socket_width
 
@@ -199,7 +200,8 @@ def value_attribute(graph: VoxelGraph, node, socket, scope: tuple) -> np.ndarray
 
 def value_combine(graph: VoxelGraph, node, socket, scope: tuple) -> np.ndarray | None:
     if getattr(node, "mode", "RGB") != "RGB":
-        graph.warn_node(node, f"{node.mode} colour mode is not supported; the inputs it feeds use their own values")
+        graph.warn_node(node, f"{node.mode} colour mode is not supported; the inputs it feeds use their "
+                              "own values")
         return None
     parts = np.broadcast_arrays(*[graph.input_value(s, scope) for s in node.inputs[:3]])
     return np.concatenate(parts, axis=1)
@@ -286,7 +288,8 @@ def closure_absorption(graph: VoxelGraph, read: Reader, weight: np.ndarray, tota
     total.sigma_a = total.sigma_a + (1.0 - graph.scalar(read, "Color")) * density
 
 
-def closure_coefficients(graph: VoxelGraph, read: Reader, weight: np.ndarray, total: VoxelCoefficients) -> None:
+def closure_coefficients(graph: VoxelGraph, read: Reader, weight: np.ndarray,
+                         total: VoxelCoefficients) -> None:
     warn_phase(graph, read)
     add_scatter(total, weight * graph.scalar(read, "Scatter Coefficients"), graph.scalar(read, "Anisotropy"))
     total.sigma_a = total.sigma_a + weight * graph.scalar(read, "Absorption Coefficients")
@@ -309,7 +312,7 @@ def closure_principled(graph: VoxelGraph, read: Reader, weight: np.ndarray, tota
     color = graph.scalar(read, "Color")
     color_attribute = graph.grid(graph.text(read, "Color Attribute"))
     if color_attribute is not None:
-        color = color * (color_attribute if color_attribute.shape[1] == 3 else np.repeat(color_attribute, 3, 1))
+        color = color * np.broadcast_to(color_attribute, (color_attribute.shape[0], 3))
     absorption_color = np.sqrt(np.maximum(graph.scalar(read, "Absorption Color"), 0.0))
     absorption = np.maximum(1.0 - color, 0.0) * np.maximum(1.0 - absorption_color, 0.0)
     add_scatter(total, color * density, graph.scalar(read, "Anisotropy"))
@@ -339,7 +342,7 @@ CLOSURE_HANDLERS: dict[str, Callable] = {
 def evaluate_volume_material(material, owner: str, messages: Messages,
                              grids: dict[str, np.ndarray]) -> VoxelCoefficients | None:
     """Per-voxel coefficients of `material`'s volume (None if it has no Volume output link)."""
-    tree = material.node_tree if material is not None else None
+    tree = material.node_tree if material is not None and uses_nodes(material) else None
     output = tree.get_output_node("CYCLES") if tree is not None else None
     if output is None:
         return None

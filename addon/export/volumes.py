@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+
 import numpy as np
 
 from renderer.scene import Material, Medium, Mesh
@@ -40,6 +41,7 @@ from .messages import Messages, material_subject, object_subject
 from .volume_shader import Blackbody, VoxelCoefficients, evaluate_volume_material, grids_a_material_reads
 
 INTERFACE_MATERIAL = "Haze Volume Boundary"
+CROP_GRIDS = True  # tests switch it off to measure what cropping saves
 MAX_VOXELS = 1 << 28  # dense grids beyond this (1 GB per float32 grid) are refused
 EXACT = 1e-5  # relative residual under which a factorisation counts as exact (float32 data)
 BOX_TRIANGLES = np.array([
@@ -70,7 +72,8 @@ def object_density_factor(matrix: np.ndarray, space: str) -> float:
     return 1.0 / length if length > 0.0 else 0.0
 
 
-def clean_grid(values: np.ndarray, clipping: float, subject: str, name: str, messages: Messages) -> np.ndarray:
+def clean_grid(values: np.ndarray, clipping: float, subject: str, name: str,
+               messages: Messages) -> np.ndarray:
     """The grid as Cycles renders it: voxels below `clipping` (and negative ones) are empty;
     NaN and infinite voxels, which Cycles would render as garbage, are dropped with a warning."""
     values = np.asarray(values, np.float32)
@@ -176,13 +179,12 @@ def mean_anisotropy(terms: list[tuple[np.ndarray, np.ndarray]], subject: str, me
     """One Henyey-Greenstein g for the volume: the closures' g weighted by their scattering."""
     if not terms:
         return 0.0
-    weights = [np.broadcast_to(w.mean(axis=1), np.broadcast_shapes(w.shape[:1], g.shape[:1])) for g, w in terms]
-    values = [np.broadcast_to(g[:, 0], wt.shape) for (g, _), wt in zip(terms, weights)]
-    total = sum(float(w.sum()) for w in weights)
+    pairs = [np.broadcast_arrays(g[:, 0], w.mean(axis=1)) for g, w in terms]
+    total = sum(float(w.sum()) for _, w in pairs)
     if total <= 0.0:
-        return float(np.clip(values[0].mean(), -MAX_ANISOTROPY, MAX_ANISOTROPY))
-    g = sum(float((v * w).sum()) for v, w in zip(values, weights)) / total
-    spread = max(float(np.max(np.abs(v - g)[w > 0])) if np.any(w > 0) else 0.0 for v, w in zip(values, weights))
+        return float(np.clip(pairs[0][0].mean(), -MAX_ANISOTROPY, MAX_ANISOTROPY))
+    g = sum(float((v * w).sum()) for v, w in pairs) / total
+    spread = max(float(np.max(np.abs(v - g)[w > 0], initial=0.0)) for v, w in pairs)
     if spread > 1e-6:
         messages.warn(subject, "the volume's Anisotropy varies; Haze uses its scattering-weighted mean "
                                f"{g:.3g}")
@@ -199,7 +201,8 @@ def blackbody_terms(terms: list[Blackbody], count: int, subject: str, messages: 
     term = active[0]
     intensity = float(np.max(term.intensity))
     if np.ptp(term.intensity) > 1e-6:
-        messages.warn(subject, f"Blackbody Intensity varies between voxels; Haze uses its maximum {intensity:g}")
+        messages.warn(subject, f"Blackbody Intensity varies between voxels; Haze uses its maximum "
+                               f"{intensity:g}")
     weights = np.unique(np.round(np.asarray(term.weight * term.tint, np.float64), 6))
     scale = float(weights.max()) if weights.size else 1.0
     if weights.size != 1 or abs(scale - 1.0) > 1e-6:
@@ -228,9 +231,9 @@ class FieldBuilder:
             return np.zeros(self.shape, np.float32), np.zeros(3), np.zeros(3)
         density, constants, exact = factor_rank_one(both, self.candidates)
         if not exact:
-            self.messages.warn(self.subject, "the volume's colour varies between voxels (e.g. a colour grid or "
-                                             "different Math on scattering and absorption); Haze renders "
-                                             "one colour per volume, their average")
+            self.messages.warn(self.subject, "the volume's colour varies between voxels (e.g. a colour grid "
+                                             "or different Math on scattering and absorption); Haze "
+                                             "renders one colour per volume, their average")
         return density.reshape(self.shape).astype(np.float32), np.maximum(constants[:3], 0.0), \
             np.maximum(constants[3:], 0.0)
 
@@ -265,7 +268,7 @@ class FieldBuilder:
         box = crop_box(masks)
         if box is None:
             return None
-        lo, hi = box
+        lo, hi = box if CROP_GRIDS else (np.ones(3, int), np.array(self.shape) - 2)
         grids = [crop(a, lo, hi) if a is not None else None for a in (density, flame, temperature)]
         medium = GridMedium(grids[0], grids[1], grids[2], sigma_a, sigma_s, emission, g, intensity, bb_scale,
                             start + lo[::-1] - 1, index_to_object)
@@ -442,9 +445,9 @@ class VolumeExporter:
         wanted = {name: mapping[name] for name in sorted(names) if mapping.get(name) in info.grids}
         unreadable = [n for n, g in wanted.items() if info.grids[g].node_type is None]
         for name in unreadable:
-            self.messages.warn(source.subject, f"grid '{wanted[name]}' of type {info.grids[wanted[name]].data_type}"
-                                               " cannot be read by Haze; it reads as 0")
-            del wanted[name]
+            grid = info.grids[wanted.pop(name)]
+            self.messages.warn(source.subject, f"grid '{grid.name}' of type {grid.data_type} cannot be read "
+                                               "by Haze; it reads as 0")
         if not wanted:
             self.messages.warn(source.subject, "its material reads none of its grids "
                                f"({', '.join(sorted(info.grids))}); it is not rendered")
@@ -453,8 +456,8 @@ class VolumeExporter:
     def _read_box(self, source: VolumeSource, primary: GridInfo, info: VolumeInfo):
         start, shape = index_box(primary, info.bounds)
         if int(np.prod(shape)) > MAX_VOXELS:
-            raise ValueError(f"grid '{primary.name}' spans {shape_text(shape[::-1])} voxels, more than Haze's "
-                             f"dense grids hold ({MAX_VOXELS} voxels); lower its resolution")
+            raise ValueError(f"grid '{primary.name}' spans {shape_text(shape[::-1])} voxels, more than "
+                             f"Haze's dense grids hold ({MAX_VOXELS} voxels); lower its resolution")
         return start, shape
 
     def _read_grids(self, sampler, target, source: VolumeSource, info: VolumeInfo, wanted: dict[str, str],
@@ -502,8 +505,8 @@ class VolumeExporter:
         owner = material_subject(source.material.name_full)
         coefficients = evaluate_volume_material(source.material, owner, self.messages, flat)
         if coefficients is None:
-            self.messages.warn(source.subject, f"material '{source.material.name_full}' has no Volume shader; "
-                                               "the volume is not rendered (as in Cycles)")
+            self.messages.warn(source.subject, f"material '{source.material.name_full}' has no Volume "
+                                               "shader; the volume is not rendered (as in Cycles)")
         return coefficients
 
 
@@ -513,7 +516,8 @@ def default_volume_coefficients(grids: dict[str, np.ndarray]) -> VoxelCoefficien
     density = grids.get("density")
     values = density[:, None].astype(np.float64) if density is not None else np.ones((1, 1))
     half = np.full((1, 3), 0.5)
-    return VoxelCoefficients(half * values, half * values, np.zeros((1, 3)), [(np.zeros((1, 1)), half * values)])
+    scattering = half * values
+    return VoxelCoefficients(scattering, half * values, np.zeros((1, 3)), [(np.zeros((1, 1)), scattering)])
 
 
 def smoke_index_to_object(box: tuple[np.ndarray, np.ndarray], resolution) -> np.ndarray:
