@@ -49,8 +49,8 @@ from examples.scenes import FIG1_SIGMA_A, FIG1_SIGMA_S, icosphere  # noqa: E402
 
 OUT = REPO / "out" / "blender_gallery"
 PREVIEW_SAMPLES = {  # samples per pixel at the preview size: each scene well under 2 minutes
-    "fog_isotropic": 64, "fog_backward": 64, "fog_forward": 64, "smoke_ball": 64, "yellow_smoke": 64,
-    "fire_ball": 64, "underwater": 64, "cloud": 32,
+    "fog_isotropic": 512, "fog_backward": 512, "fog_forward": 512, "smoke_ball": 256, "yellow_smoke": 256,
+    "fire_ball": 256, "underwater": 512, "cloud": 128,
 }
 MAX_BOUNCES = {"fog_isotropic": 4, "fog_backward": 4, "fog_forward": 4}  # Fig. 1's depth; others 16
 MEDIA_BOUNCES = 16
@@ -219,11 +219,11 @@ def cloud_density(nx: int = 64, ny: int = 48, nz: int = 28, seed: int = 11) -> n
     rng = np.random.default_rng(seed)
     z, y, x = np.meshgrid(*((np.arange(n) + 0.5) / n for n in (nz, ny, nx)), indexing="ij")
     density = np.zeros((nz, ny, nx))
-    for _ in range(60):
-        cx, cy = rng.normal(0.5, 0.15, 2)
-        cz = abs(rng.normal(0.0, 0.25)) + 0.3
-        r = rng.uniform(0.06, 0.16) * (1.3 - 0.6 * cz)
-        distance2 = (x - cx) ** 2 + ((y - cy) * 1.3) ** 2 + ((z - cz) * 2.2) ** 2
+    for _ in range(80):
+        cx, cy = rng.normal(0.5, 0.17, 2)
+        cz = abs(rng.normal(0.0, 0.2)) + 0.3
+        r = rng.uniform(0.08, 0.18) * (1.3 - 0.6 * cz)
+        distance2 = (x - cx) ** 2 + ((y - cy) * 1.3) ** 2 + ((z - cz) * 0.9) ** 2
         density += np.exp(-distance2 / (2 * r * r))
     fade = np.minimum.reduce([x, 1 - x, y, 1 - y, z, 1 - z])
     density *= np.clip(fade / 0.12, 0.0, 1.0)
@@ -238,12 +238,12 @@ def cloud(size: int, folder: Path) -> bpy.types.Scene:
 
     scene = C.clear_scene()
     pbrt = folder / "cloud.pbrt"
-    write_pbrt(pbrt, cloud_density(), (-2.0, -1.5, 0.0), (2.0, 1.5, 1.75), sigma_a=(0.05, 0.05, 0.05),
+    write_pbrt(pbrt, cloud_density(), (-2.5, -1.9, 0.0), (2.5, 1.9, 2.2), sigma_a=(0.05, 0.05, 0.05),
                sigma_s=(6.0, 6.0, 6.0))
     values, p0, p1 = read_pbrt(pbrt)
     material = coefficient_material("Cloud", (0.05, 0.05, 0.05), (6.0, 6.0, 6.0), 0.6)
     cloud_object = add_volume_object(bpy.context, "Cloud", values, p0, p1, material, folder)
-    cloud_object.location = (0.0, 0.0, 1.2)
+    cloud_object.location = (0.0, 1.0, 0.9)
     ground = C.quad("Ground", [(-30, -30, 0), (30, -30, 0), (30, 30, 0), (-30, 30, 0)],
                     C.diffuse_material("Ground", (0.35, 0.35, 0.33)))
     ground.name = "Ground"
@@ -259,7 +259,7 @@ def cloud(size: int, folder: Path) -> bpy.types.Scene:
     background.inputs["Color"].default_value = (0.35, 0.55, 0.9, 1.0)
     background.inputs["Strength"].default_value = 0.6
     scene.world = world
-    C.add_camera(scene, (0.0, -7.5, 1.6), (88.0, 0.0, 0.0), lens=30.0)
+    C.add_camera(scene, (0.0, -4.2, 0.9), (92.0, 0.0, 0.0), lens=22.0)
     render = scene.render
     render.resolution_x = render.resolution_y = size
     render.resolution_percentage = 100

@@ -1,11 +1,11 @@
 """Smoke and fire domains (gas fluid simulations) from their OpenVDB cache files.
 
 A gas domain's grids for the current frame are in <cache directory>/data/fluid_data_NNNN.vdb
-(Mantaflow's OpenVDB cache; NNNN = frame, zero-padded to 4). The file is loaded into a
-temporary volume object so the same geometry-node sampler reads it (never the simulation
-itself: nothing is baked). Cell (i, j, k) of the simulation is voxel (i, j, k) of the file's
-index space; the base resolution fills the domain mesh's bounding box (the texture space
-Cycles places smoke in), cell i centred at (i + 0.5) / res of it.
+(Mantaflow's OpenVDB cache; NNNN = scene frame - the domain's cache frame offset, 4 digits).
+The file is loaded into a temporary volume object so the same geometry-node sampler reads it
+(never the simulation itself: nothing is baked). Cell (i, j, k) of the simulation is voxel
+(i, j, k) of the file's index space; the base resolution fills the domain mesh's bounding box
+(the texture space Cycles places smoke in), cell i centred at (i + 0.5) / res of it.
 
 Attributes as Cycles reads them from a domain (rna_fluid: *_grid_get):
   density      the "density" grid
@@ -72,10 +72,11 @@ def smoke_cache_source(obj, frame: int, messages: Messages, material):
         messages.warn(subject, f"its fluid cache format is {settings.cache_data_format}; Haze reads only "
                                "OpenVDB caches, the domain is not rendered")
         return None
-    path = cache_file(bpy.path.abspath(settings.cache_directory), frame)
+    cache_frame = frame - int(settings.cache_frame_offset)  # the cache's frame shown at scene `frame`
+    path = cache_file(bpy.path.abspath(settings.cache_directory), cache_frame)
     if not path.is_file():
-        messages.warn(subject, f"no cached smoke for frame {frame} ({path}); bake the simulation (or set "
-                               "the frame) to render it")
+        messages.warn(subject, f"no cached smoke for frame {cache_frame} ({path}); bake the simulation (or "
+                               "set the frame) to render it")
         return None
     if settings.use_noise:
         messages.warn(subject, "noise (high-resolution) grids are not read; Haze renders the base resolution")

@@ -407,6 +407,8 @@ class VolumeExporter:
         for key, grid in converted.items():
             if grid is not None:
                 self.stats.extend(f"{self._subject_of(key)}: {line}" for line in grid.stats)
+        for line in self.stats:
+            print(f"Haze: {line}")  # the console, next to Blender's own render log
         if media:
             self.library.add(Material(INTERFACE_MATERIAL))
         return meshes, media
@@ -436,7 +438,21 @@ class VolumeExporter:
         raw = self._read_grids(sampler, target, source, info, wanted, primary, start, shape)
         if raw is None:
             return None
-        return self._build(source, raw, start, shape, primary)
+        read_shape = (int(shape[2]), int(shape[1]), int(shape[0]))
+        if self._empty_without_grids(source, raw):
+            raw, start = crop_to_voxels(raw, np.asarray(start))
+        return self._build(source, raw, start, read_shape, primary)
+
+    def _empty_without_grids(self, source: VolumeSource, raw: dict[str, np.ndarray]) -> bool:
+        """Whether the material gives nothing where every grid it reads is 0: then the grids
+        can be cropped before the (per-voxel, float64) material evaluation."""
+        zero = {name: np.zeros((1,) + v.shape[3:], np.float32) for name, v in raw.items()}
+        coefficients = self._coefficients(source, zero)
+        if coefficients is None:
+            return True
+        c = coefficients
+        blackbody = any(np.any((t.temperature > 0.0) & (t.intensity > 0.0)) for t in c.blackbody)
+        return not (np.any(c.sigma_s) or np.any(c.sigma_a) or np.any(c.emission) or blackbody)
 
     def _wanted_grids(self, source: VolumeSource, info: VolumeInfo) -> dict[str, str]:
         """Material attribute name -> grid name, for the grids the material reads that exist."""
@@ -482,9 +498,9 @@ class VolumeExporter:
             return None
         return raw
 
-    def _build(self, source: VolumeSource, raw: dict[str, np.ndarray], start, shape,
+    def _build(self, source: VolumeSource, raw: dict[str, np.ndarray], start, read_shape,
                primary: GridInfo) -> GridMedium | None:
-        grid_shape = (int(shape[2]), int(shape[1]), int(shape[0]))
+        grid_shape = next(iter(raw.values())).shape[:3]
         flat = {name: v.reshape(-1) if v.ndim == 3 else v.reshape(-1, 3) for name, v in raw.items()}
         coefficients = self._coefficients(source, flat)
         if coefficients is None:
@@ -493,7 +509,7 @@ class VolumeExporter:
         index_to_object = primary.index_to_object
         if source.domain_box is not None:
             index_to_object = smoke_index_to_object(source.domain_box, source.domain_res)
-        medium = builder.build(coefficients, np.asarray(start), index_to_object, grid_shape)
+        medium = builder.build(coefficients, np.asarray(start), index_to_object, read_shape)
         if medium is None:
             self.messages.warn(source.subject, "its material gives no extinction or emission anywhere; it is "
                                                "not rendered")
@@ -508,6 +524,23 @@ class VolumeExporter:
             self.messages.warn(source.subject, f"material '{source.material.name_full}' has no Volume "
                                                "shader; the volume is not rendered (as in Cycles)")
         return coefficients
+
+
+def crop_to_voxels(raw: dict[str, np.ndarray], start: np.ndarray) -> tuple[dict[str, np.ndarray], np.ndarray]:
+    """The grids cut to their non-zero voxels plus one empty voxel around them, and the (x, y, z)
+    index of the new voxel [0, 0, 0]."""
+    masks = [(v != 0.0) if v.ndim == 3 else np.any(v != 0.0, axis=-1) for v in raw.values()]
+    box = crop_box(masks)
+    if box is None or not CROP_GRIDS:
+        return raw, start
+    lo, hi = box
+    cropped = {}
+    for name, values in raw.items():
+        if values.ndim == 3:
+            cropped[name] = crop(values, lo, hi)
+        else:
+            cropped[name] = np.stack([crop(values[..., c], lo, hi) for c in range(values.shape[-1])], axis=-1)
+    return cropped, start + lo[::-1] - 1
 
 
 def default_volume_coefficients(grids: dict[str, np.ndarray]) -> VoxelCoefficients:
