@@ -22,16 +22,12 @@ import numpy as np
 import pytest
 from bpy_helpers import assert_agree, compare_images, run_blender, shared_numba_cache
 
+from addon.export import grid_fields
+from addon.export.grid_fields import clean_grid, crop, crop_box, evaluate_fields, factor_rank_one
 from addon.export.mesh import edge_problems
 from addon.export.smoke import base_resolution
-from addon.export.volumes import (
-    box_mesh,
-    clean_grid,
-    crop,
-    crop_box,
-    factor_rank_one,
-    object_density_factor,
-)
+from addon.export.volume_shader import Blackbody, VoxelCoefficients
+from addon.export.volumes import box_mesh, object_density_factor
 from addon.volume_grids import (
     GridFileError,
     box_index_to_object,
@@ -108,7 +104,7 @@ def test_factor_of_a_nonlinear_field_keeps_the_product():
     values = np.outer(grid**2, [0.3, 0.6, 0.9])  # e.g. a Math Power node on the density
     field, constants, exact = factor_rank_one(values, [grid])
     assert exact
-    np.testing.assert_allclose(np.outer(field, constants), values, rtol=1e-12, atol=1e-15)
+    np.testing.assert_allclose(np.outer(field, constants), values, rtol=4 * FLOAT32_EPS)  # float32 field
 
 
 def test_factor_flags_a_varying_colour():
@@ -116,6 +112,34 @@ def test_factor_flags_a_varying_colour():
     values = rng.random((30, 3))  # a colour grid: no single colour fits
     _, _, exact = factor_rank_one(values, [values[:, 0]])
     assert not exact
+
+
+def fake_material(grids: dict[str, np.ndarray]) -> VoxelCoefficients:
+    """Scattering 2 x density, absorption 0.25 where there is flame (one row where a chunk has
+    none, as the shader gives for values the same in every voxel), blackbody at 1000 x flame."""
+    density, flame = grids["density"][:, None], grids["flame"][:, None]
+    absorption = np.where(flame > 0.0, 0.25, 0.0) * np.ones(3)
+    if not np.any(absorption):
+        absorption = np.zeros((1, 3))
+    return VoxelCoefficients(2.0 * density * np.array([0.2, 0.4, 0.6]), absorption, np.zeros((1, 3)),
+                             [(np.full((1, 1), 0.3), 2.0 * density)],
+                             [Blackbody(1000.0 * flame, np.ones((1, 1)), np.ones((1, 3)), np.ones((1, 1)))])
+
+
+def test_chunked_evaluation_equals_one_pass(monkeypatch):
+    rng = np.random.default_rng(5)
+    grids = {"density": rng.random(100).astype(np.float32), "flame": rng.random(100).astype(np.float32)}
+    grids["flame"][:50] = 0.0
+    whole = evaluate_fields(fake_material, grids, 100)
+    monkeypatch.setattr(grid_fields, "CHUNK", 7)
+    pieces = evaluate_fields(fake_material, grids, 100)
+    for name in ("sigma_s", "sigma_a", "emission", "temperature"):
+        chunked, single = np.broadcast_arrays(getattr(pieces, name), getattr(whole, name))
+        np.testing.assert_allclose(chunked, single, rtol=1e-6)
+    assert pieces.sigma_a.shape == (100, 3)  # one row per chunk at first, a full column once it varies
+    assert pieces.emission.shape == (1, 3)  # the same in every chunk: stays one row
+    assert pieces.anisotropy == pytest.approx(0.3) and pieces.anisotropy_spread < 1e-6
+    assert pieces.blackbody_intensity == 1.0 and pieces.blackbody_scale == (1.0, 1.0)
 
 
 def test_crop_keeps_the_density_field_and_one_empty_voxel():

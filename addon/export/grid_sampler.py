@@ -208,6 +208,9 @@ class GridSampler:
         """Grids and bounds of `target` (an original volume object) as the sampler evaluates it."""
         self._use_tree(build_sampler_tree(TEMPORARY_NAME, target, "", "FLOAT"))
         evaluated = target.evaluated_get(self._depsgraph())
+        if evaluated.type != "VOLUME":
+            raise ValueError(f"it is a {evaluated.type.lower()} object making volume geometry; Haze reads "
+                             "the grids of Volume objects only")
         volume = evaluated.data
         grids: dict[str, GridInfo] = {}
         for grid in volume.grids:

@@ -29,21 +29,22 @@ default volume shader (Principled Volume, Color 0.5, Density 1, reading "density
 from __future__ import annotations
 
 import math
+import traceback
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from renderer.scene import Material, Medium, Mesh
 
+from .grid_fields import FieldBuilder, GridMedium, clean_grid, crop_to_voxels, evaluate_fields, shape_text
 from .grid_sampler import GridInfo, GridSampler, VolumeInfo, index_box
-from .materials import MAX_ANISOTROPY, MaterialLibrary
+from .materials import MaterialLibrary
 from .messages import Messages, material_subject, object_subject
-from .volume_shader import Blackbody, VoxelCoefficients, evaluate_volume_material, grids_a_material_reads
+from .volume_shader import VoxelCoefficients, evaluate_volume_material, grids_a_material_reads
 
 INTERFACE_MATERIAL = "Haze Volume Boundary"
 CROP_GRIDS = True  # tests switch it off to measure what cropping saves
 MAX_VOXELS = 1 << 28  # dense grids beyond this (1 GB per float32 grid) are refused
-EXACT = 1e-5  # relative residual under which a factorisation counts as exact (float32 data)
 BOX_TRIANGLES = np.array([
     (0, 2, 1), (1, 2, 3), (4, 5, 6), (5, 7, 6),  # z = p0, z = p1
     (0, 1, 4), (1, 5, 4), (2, 6, 3), (3, 6, 7),  # y = p0, y = p1
@@ -70,221 +71,6 @@ def object_density_factor(matrix: np.ndarray, space: str) -> float:
         return 1.0
     length = float(np.linalg.norm(matrix[:3, :3] @ (np.ones(3) / math.sqrt(3.0))))
     return 1.0 / length if length > 0.0 else 0.0
-
-
-def clean_grid(values: np.ndarray, clipping: float, subject: str, name: str,
-               messages: Messages) -> np.ndarray:
-    """The grid as Cycles renders it: voxels below `clipping` (and negative ones) are empty;
-    NaN and infinite voxels, which Cycles would render as garbage, are dropped with a warning."""
-    values = np.asarray(values, np.float32)
-    finite = np.isfinite(values)
-    if not finite.all():
-        bad = values.size - int(np.count_nonzero(finite))
-        messages.warn(subject, f"grid '{name}' has {bad} NaN or infinite voxel values; they are treated as 0")
-        values = np.where(finite, values, np.float32(0.0))
-    negative = int(np.count_nonzero(values < 0.0))
-    if negative:
-        messages.warn(subject, f"grid '{name}' has {negative} negative voxel values; they are treated as 0 "
-                               "(empty, as Cycles' clipping makes them)")
-    scalar = values if values.ndim == 3 else values.max(axis=-1)
-    keep = scalar >= max(float(clipping), 0.0) if clipping > 0.0 else scalar > 0.0
-    keep = keep[..., None] if values.ndim == 4 else keep
-    return np.where(keep & (values >= 0.0), values, np.float32(0.0))
-
-
-def factor_rank_one(values: np.ndarray, candidates: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray, bool]:
-    """Write (n, c) per-voxel values as field (n,) x constants (c,).
-
-    A candidate grid the values are a constant multiple of is preferred (then Haze renders the
-    volume's own grid); otherwise the field is the values' mean over c. Returns (field,
-    constants, exact) where exact says the product reproduces the values to float precision."""
-    scale = float(np.max(np.abs(values))) if values.size else 0.0
-    for grid in candidates:
-        grid = np.asarray(grid, np.float64)
-        norm = float(np.dot(grid, grid))
-        if norm == 0.0:
-            continue
-        constants = grid @ values / norm
-        if np.max(np.abs(values - np.outer(grid, constants))) <= EXACT * scale:
-            return grid, constants, True
-    field = values.mean(axis=1)
-    norm = float(np.dot(field, field))
-    constants = field @ values / norm if norm > 0.0 else np.zeros(values.shape[1])
-    exact = np.max(np.abs(values - np.outer(field, constants))) <= EXACT * scale
-    return field, constants, bool(exact)
-
-
-def crop_box(masks: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray] | None:
-    """(lo, hi) inclusive (z, y, x) bounds of the voxels set in any mask, or None if none is."""
-    union = np.zeros(masks[0].shape, bool)
-    for mask in masks:
-        union |= mask
-    if not union.any():
-        return None
-    where = [np.flatnonzero(union.any(axis=tuple(a for a in range(3) if a != axis))) for axis in range(3)]
-    return np.array([w[0] for w in where]), np.array([w[-1] for w in where])
-
-
-def crop(values: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
-    """values[lo - 1 .. hi + 1] (z, y, x), zero-padded where that leaves the array: one empty
-    voxel around the kept ones, so the density falls to 0 inside the grid box."""
-    pad = [(max(0, 1 - int(lo[a])), max(0, int(hi[a]) + 2 - values.shape[a])) for a in range(3)]
-    padded = np.pad(values, pad) if any(p != (0, 0) for p in pad) else values
-    start = [int(lo[a]) - 1 + pad[a][0] for a in range(3)]
-    stop = [int(hi[a]) + 2 + pad[a][0] for a in range(3)]
-    return np.ascontiguousarray(padded[start[0]:stop[0], start[1]:stop[1], start[2]:stop[2]], np.float32)
-
-
-def megabytes(values: np.ndarray | None) -> float:
-    return 0.0 if values is None else values.nbytes / 2**20
-
-
-def shape_text(shape) -> str:
-    return "x".join(str(int(s)) for s in reversed(shape))  # x by y by z
-
-
-# ---------------------------------------------------------------------------- grid media
-
-
-@dataclass
-class GridMedium:
-    """A volume's grids and constants as Haze renders them, shared by all its instances."""
-
-    density: np.ndarray  # (nz, ny, nx) float32
-    flame: np.ndarray | None
-    temperature: np.ndarray | None
-    sigma_a: np.ndarray  # (3,)
-    sigma_s: np.ndarray
-    emission: np.ndarray
-    g: float
-    blackbody_intensity: float
-    blackbody_scale: float  # Cycles' blackbody weight (mix weight x tint), Haze renders 1
-    start: np.ndarray  # (3,) x, y, z index of the grid's voxel [0, 0, 0]
-    index_to_object: np.ndarray  # (4, 4)
-    stats: list[str] = field(default_factory=list)
-
-    def medium(self, name: str, matrix_world: np.ndarray, density_factor: float) -> Medium:
-        shape = np.array(self.density.shape[::-1])
-        p0 = self.start - 0.5
-        return Medium(
-            name, "grid", sigma_a=tuple(float(v) for v in self.sigma_a),
-            sigma_s=tuple(float(v) for v in self.sigma_s), scale=float(density_factor), g=self.g,
-            emission=tuple(float(v) * density_factor for v in self.emission), density=self.density,
-            p0=tuple(float(v) for v in p0), p1=tuple(float(v) for v in p0 + shape),
-            to_world=matrix_world @ self.index_to_object, flame=self.flame, temperature=self.temperature,
-            blackbody_intensity=self.blackbody_intensity)
-
-
-def mean_anisotropy(terms: list[tuple[np.ndarray, np.ndarray]], subject: str, messages: Messages) -> float:
-    """One Henyey-Greenstein g for the volume: the closures' g weighted by their scattering."""
-    if not terms:
-        return 0.0
-    pairs = [np.broadcast_arrays(g[:, 0], w.mean(axis=1)) for g, w in terms]
-    total = sum(float(w.sum()) for _, w in pairs)
-    if total <= 0.0:
-        return float(np.clip(pairs[0][0].mean(), -MAX_ANISOTROPY, MAX_ANISOTROPY))
-    g = sum(float((v * w).sum()) for v, w in pairs) / total
-    spread = max(float(np.max(np.abs(v - g)[w > 0], initial=0.0)) for v, w in pairs)
-    if spread > 1e-6:
-        messages.warn(subject, "the volume's Anisotropy varies; Haze uses its scattering-weighted mean "
-                               f"{g:.3g}")
-    return float(np.clip(g, -MAX_ANISOTROPY, MAX_ANISOTROPY))
-
-
-def blackbody_terms(terms: list[Blackbody], count: int, subject: str, messages: Messages):
-    """(temperature (n,) or None, intensity, scale) of the material's blackbody emission."""
-    active = [t for t in terms if np.any((t.intensity > 0.0) & (t.weight != 0.0))]
-    if not active:
-        return None, 0.0, 1.0
-    if len(active) > 1:
-        messages.warn(subject, "several Principled Volume blackbody emissions; Haze renders the first")
-    term = active[0]
-    intensity = float(np.max(term.intensity))
-    if np.ptp(term.intensity) > 1e-6:
-        messages.warn(subject, f"Blackbody Intensity varies between voxels; Haze uses its maximum "
-                               f"{intensity:g}")
-    weights = np.unique(np.round(np.asarray(term.weight * term.tint, np.float64), 6))
-    scale = float(weights.max()) if weights.size else 1.0
-    if weights.size != 1 or abs(scale - 1.0) > 1e-6:
-        messages.warn(subject, "Haze's blackbody emission has no tint or weight: Blackbody Tint and Mix "
-                               "Shader factors on the blackbody are rendered as 1")
-    temperature = np.broadcast_to(term.temperature[:, 0], (count,)).astype(np.float32)
-    return temperature, intensity, scale
-
-
-class FieldBuilder:
-    """Turns one volume's per-voxel coefficients into a GridMedium on its voxel lattice."""
-
-    def __init__(self, subject: str, messages: Messages, shape: tuple[int, int, int],
-                 raw: dict[str, np.ndarray]) -> None:
-        self.subject, self.messages, self.shape = subject, messages, shape
-        self.count = int(np.prod(shape))
-        # Scalar grids the material may scale: preferred as Haze's density and flame.
-        self.candidates = [v.reshape(-1) for v in raw.values() if v.ndim == 3]
-
-    def per_voxel(self, values: np.ndarray) -> np.ndarray:
-        return np.broadcast_to(np.maximum(values, 0.0), (self.count, values.shape[1]))
-
-    def extinction(self, coefficients: VoxelCoefficients):
-        both = np.concatenate([self.per_voxel(coefficients.sigma_s), self.per_voxel(coefficients.sigma_a)], 1)
-        if not np.any(both):
-            return np.zeros(self.shape, np.float32), np.zeros(3), np.zeros(3)
-        density, constants, exact = factor_rank_one(both, self.candidates)
-        if not exact:
-            self.messages.warn(self.subject, "the volume's colour varies between voxels (e.g. a colour grid "
-                                             "or different Math on scattering and absorption); Haze "
-                                             "renders one colour per volume, their average")
-        return density.reshape(self.shape).astype(np.float32), np.maximum(constants[:3], 0.0), \
-            np.maximum(constants[3:], 0.0)
-
-    def emission(self, coefficients: VoxelCoefficients):
-        values = np.maximum(coefficients.emission, 0.0)
-        if not np.any(values):
-            return None, np.zeros(3)
-        if values.shape[0] == 1:
-            return None, values[0]  # constant: Haze emits it throughout the grid box
-        flame, constants, exact = factor_rank_one(values, self.candidates)
-        if not exact:
-            self.messages.warn(self.subject, "the emission colour varies between voxels; Haze renders one "
-                                             "colour per volume, the average")
-        return flame.reshape(self.shape).astype(np.float32), np.maximum(constants, 0.0)
-
-    def build(self, coefficients: VoxelCoefficients, start: np.ndarray, index_to_object: np.ndarray,
-              read_shape: tuple[int, int, int]) -> GridMedium | None:
-        density, sigma_s, sigma_a = self.extinction(coefficients)
-        flame, emission = self.emission(coefficients)
-        temperature, intensity, bb_scale = blackbody_terms(coefficients.blackbody, self.count, self.subject,
-                                                           self.messages)
-        if temperature is not None:
-            temperature = temperature.reshape(self.shape)
-        g = mean_anisotropy(coefficients.anisotropy, self.subject, self.messages)
-        masks = [density > 0.0]
-        if flame is not None:
-            masks.append(flame > 0.0)
-        if temperature is not None:
-            masks.append(temperature > 0.0)
-        if flame is None and np.any(emission):
-            masks.append(np.ones(self.shape, bool))
-        box = crop_box(masks)
-        if box is None:
-            return None
-        lo, hi = box if CROP_GRIDS else (np.ones(3, int), np.array(self.shape) - 2)
-        grids = [crop(a, lo, hi) if a is not None else None for a in (density, flame, temperature)]
-        medium = GridMedium(grids[0], grids[1], grids[2], sigma_a, sigma_s, emission, g, intensity, bb_scale,
-                            start + lo[::-1] - 1, index_to_object)
-        medium.stats = self.stats(read_shape, medium)
-        return medium
-
-    @staticmethod
-    def stats(read_shape, medium: GridMedium) -> list[str]:
-        before = int(np.prod(read_shape)) * 4 / 2**20
-        lines = []
-        for name in ("density", "flame", "temperature"):
-            values = getattr(medium, name)
-            if values is not None:
-                lines.append(f"{name} grid {shape_text(values.shape)} voxels, {megabytes(values):.3f} MB "
-                             f"(read {shape_text(read_shape)}, {before:.3f} MB before cropping)")
-        return lines
 
 
 # ---------------------------------------------------------------------------- Blender side
@@ -421,7 +207,11 @@ class VolumeExporter:
             return self._read_and_build(sampler, source)
         except (RuntimeError, ValueError, MemoryError) as error:
             self.messages.warn(source.subject, f"its grids could not be read ({error}); it is not rendered")
-            return None
+        except Exception as error:  # one unreadable volume must not stop the render of the others
+            traceback.print_exc()
+            self.messages.warn(source.subject, f"reading its grids failed ({type(error).__name__}: {error}); "
+                                               "it is not rendered")
+        return None
 
     def _read_and_build(self, sampler: GridSampler, source: VolumeSource) -> GridMedium | None:
         target = source.target if source.target is not None else sampler.file_volume(source.cache_file)
@@ -439,7 +229,7 @@ class VolumeExporter:
         if raw is None:
             return None
         read_shape = (int(shape[2]), int(shape[1]), int(shape[0]))
-        if self._empty_without_grids(source, raw):
+        if CROP_GRIDS and self._empty_without_grids(source, raw):
             raw, start = crop_to_voxels(raw, np.asarray(start))
         return self._build(source, raw, start, read_shape, primary)
 
@@ -502,14 +292,15 @@ class VolumeExporter:
                primary: GridInfo) -> GridMedium | None:
         grid_shape = next(iter(raw.values())).shape[:3]
         flat = {name: v.reshape(-1) if v.ndim == 3 else v.reshape(-1, 3) for name, v in raw.items()}
-        coefficients = self._coefficients(source, flat)
-        if coefficients is None:
+        count = int(np.prod(grid_shape))
+        fields = evaluate_fields(lambda grids: self._coefficients(source, grids), flat, count)
+        if fields is None:
             return None
-        builder = FieldBuilder(source.subject, self.messages, grid_shape, raw)
+        builder = FieldBuilder(source.subject, self.messages, grid_shape, raw, CROP_GRIDS)
         index_to_object = primary.index_to_object
         if source.domain_box is not None:
             index_to_object = smoke_index_to_object(source.domain_box, source.domain_res)
-        medium = builder.build(coefficients, np.asarray(start), index_to_object, read_shape)
+        medium = builder.build(fields, np.asarray(start), index_to_object, read_shape)
         if medium is None:
             self.messages.warn(source.subject, "its material gives no extinction or emission anywhere; it is "
                                                "not rendered")
@@ -524,23 +315,6 @@ class VolumeExporter:
             self.messages.warn(source.subject, f"material '{source.material.name_full}' has no Volume "
                                                "shader; the volume is not rendered (as in Cycles)")
         return coefficients
-
-
-def crop_to_voxels(raw: dict[str, np.ndarray], start: np.ndarray) -> tuple[dict[str, np.ndarray], np.ndarray]:
-    """The grids cut to their non-zero voxels plus one empty voxel around them, and the (x, y, z)
-    index of the new voxel [0, 0, 0]."""
-    masks = [(v != 0.0) if v.ndim == 3 else np.any(v != 0.0, axis=-1) for v in raw.values()]
-    box = crop_box(masks)
-    if box is None or not CROP_GRIDS:
-        return raw, start
-    lo, hi = box
-    cropped = {}
-    for name, values in raw.items():
-        if values.ndim == 3:
-            cropped[name] = crop(values, lo, hi)
-        else:
-            cropped[name] = np.stack([crop(values[..., c], lo, hi) for c in range(values.shape[-1])], axis=-1)
-    return cropped, start + lo[::-1] - 1
 
 
 def default_volume_coefficients(grids: dict[str, np.ndarray]) -> VoxelCoefficients:
