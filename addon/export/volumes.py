@@ -184,7 +184,7 @@ class VolumeExporter:
             if grid is None:
                 continue
             medium = grid.medium(f"{item.name} (volume)", item.matrix_world, item.density_factor)
-            if grid.temperature is not None and abs(item.density_factor * grid.blackbody_scale - 1.0) > 1e-6:
+            if grid.temperature is not None and abs(item.density_factor - 1.0) > 1e-6:
                 self.messages.warn(item.source.subject, "blackbody emission is rendered without the object's "
                                    "volume density factor (object scale with render space 'Object')")
             media.append(medium)
