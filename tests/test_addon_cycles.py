@@ -143,8 +143,6 @@ KNOWN_DIFFERENCES = {
     "principled": "renderer 'plastic' couples the coat as (1-E(wo))(1-E(wi))/(1-E_avg); Cycles' "
                   "Principled weights the diffuse base by (1-E(wo)) only (+3% under a point light), and "
                   "'rough_conductor' uses a constant Fresnel where Principled metals use Schlick",
-    "area": "renderer NEE of emissive triangles is biased for receivers far from the light's normal "
-            "(one-sided quad 0.5 m above a floor: NEE 0.18 vs BSDF sampling 0.64, Cycles 0.64)",
 }
 
 
