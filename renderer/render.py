@@ -48,8 +48,9 @@ def _validate(scene: Scene) -> None:
 class _Chunker:
     """Sizes passes from the measured time per sample so each lasts about PASS_SECONDS."""
 
-    def __init__(self, target: int):
+    def __init__(self, target: int, workers: int = 1):
         self.target = target
+        self.workers = workers
         self.next = 0  # first sample index not yet handed out
         self.seconds_per_spp = math.nan
 
@@ -61,7 +62,9 @@ class _Chunker:
         else:
             budget = min(PASS_SECONDS, time_left) if time_left > 0 else PASS_SECONDS
             k = max(1, int(budget / max(self.seconds_per_spp, 1e-9)))
-        k = min(k, self.target - self.next)
+        remaining = self.target - self.next
+        # Near the end, split what is left evenly so no worker idles while another finishes.
+        k = min(k, max(1, -(-remaining // self.workers)))
         start = self.next
         self.next += k
         return start, k
@@ -83,7 +86,7 @@ def render_progressive(scene: Scene, workers: int = 1, target_error: float = 0.0
     cs = compile_scene(scene)
     settings = scene.integrator
     film = Film(cs.width, cs.height)
-    chunker = _Chunker(settings.spp)
+    chunker = _Chunker(settings.spp, max(1, workers))
     if workers <= 1:
         yield from _render_here(cs, settings, film, chunker, t0, target_error)
     else:

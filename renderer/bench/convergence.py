@@ -431,6 +431,7 @@ class SceneResult:
     cycles_vs_haze: Curve | None
     haze_ref: Reference
     cycles_ref: Reference | None
+    load: str  # machine load when the scene's measurements started
 
 
 def fmt(value: float, digits: int = 3) -> str:
@@ -508,16 +509,19 @@ def reference_rows(results: list[SceneResult]) -> list[str]:
 
 def estimate_rows(results: list[SceneResult]) -> list[str]:
     """The online estimates against the true relMSE along each scene's default Haze curve."""
-    rows = ["| scene | spp | true relMSE | Haze's estimate | true / estimate | proposed estimate | "
-            "true / proposed |", "|---|---:|---:|---:|---:|---:|---:|"]
+    rows = ["| scene | setting | spp | true relMSE | Haze's estimate | true / estimate | proposed estimate | "
+            "true / proposed |", "|---|---|---:|---:|---:|---:|---:|---:|"]
     for result in results:
+        if not result.haze:
+            continue
         curve = result.haze[0]
         spp = np.asarray(curve.spp)
         wanted = [n for n in (4, 16, 64, 256, 1024) if spp.max() >= n / 2]
         picks = sorted({int(np.argmin(np.abs(spp - n))) for n in wanted})
         for i in picks:
             true = curve.relmse[i]
-            rows.append(f"| {result.scene.name} | {curve.spp[i]} | {fmt(true)} | {fmt(curve.estimate[i])} | "
+            rows.append(f"| {result.scene.name} | {curve.label} | {curve.spp[i]} | {fmt(true)} | "
+                        f"{fmt(curve.estimate[i])} | "
                         f"{fmt(true / curve.estimate[i], 2)} | {fmt(curve.robust[i])} | "
                         f"{fmt(true / curve.robust[i], 2)} |")
     return rows
@@ -529,7 +533,7 @@ PALETTE = ("#1f77b4", "#2ca02c", "#9467bd", "#8c564b", "#e377c2", "#17becf")
 CYCLES_COLOR = "#d62728"
 
 
-def svg_plot(result: SceneResult, path: Path) -> None:
+def svg_plot(result: SceneResult, path: Path, size: int, workers: int) -> None:
     """relMSE against seconds on log-log axes, one line per curve; 1e-2 and 1e-3 marked."""
     series = [(c, PALETTE[i % len(PALETTE)], "") for i, c in enumerate(result.haze)]
     if result.cycles is not None:
@@ -539,7 +543,7 @@ def svg_plot(result: SceneResult, path: Path) -> None:
     points = [(t, e) for c, _, _ in series for t, e in zip(c.seconds, c.relmse) if t > 0 and e > 0]
     xs, ys = [p[0] for p in points], [p[1] for p in points] + list(TARGETS)
     axes = LogAxes(min(xs), max(xs), min(ys), max(ys))
-    parts = [axes.frame(f"{result.scene.name}: relMSE against wall time (128x128, 2 cores)")]
+    parts = [axes.frame(f"{result.scene.name}: relMSE against wall time ({size}x{size}, {workers} cores)")]
     for target in TARGETS:
         parts.append(axes.hline(target))
     for curve, color, dash in series:
@@ -631,6 +635,7 @@ class Options:
     reference_target: float
     reference_time: float
     out: Path | None
+    settings: list[str] | None  # estimator settings to run (None: every one the scene has)
 
 
 def run_scene(bench: BenchScene, options: Options) -> SceneResult:
@@ -642,7 +647,9 @@ def run_scene(bench: BenchScene, options: Options) -> SceneResult:
     print(f"  Haze reference: {haze_ref.spp} spp, noise relMSE {haze_ref.noise_relmse:.2g}", flush=True)
     max_seconds = max(options.budgets)
     curves = []
-    for label, overrides in bench.settings.items():
+    load = machine_line()
+    chosen = {k: v for k, v in bench.settings.items() if options.settings is None or k in options.settings}
+    for label, overrides in chosen.items():
         curves.append(haze_curve(scene, label, overrides, haze_ref, max_seconds, options.workers))
         print(f"  Haze {label}: {_curve_line(curves[-1])}", flush=True)
     cycles = cycles_vs_haze = cycles_ref = None
@@ -652,7 +659,7 @@ def run_scene(bench: BenchScene, options: Options) -> SceneResult:
         print(f"  Cycles reference: {cycles_ref.spp} samples, noise relMSE {cycles_ref.noise_relmse:.2g}")
         print(f"  Cycles: {_curve_line(cycles)}", flush=True)
         print(f"  Cycles vs Haze ref: {_curve_line(cycles_vs_haze)}", flush=True)
-    return SceneResult(bench, curves, cycles, cycles_vs_haze, haze_ref, cycles_ref)
+    return SceneResult(bench, curves, cycles, cycles_vs_haze, haze_ref, cycles_ref, load)
 
 
 def _curve_line(curve: Curve) -> str:
@@ -674,10 +681,11 @@ def report(results: list[SceneResult], options: Options, command: str, load_befo
              "along relMSE ~ 1/(t - start-up) past the last measured point.", "",
              "## Time to relMSE", ""]
     lines += summary_table(results) + ["", "## References", ""] + reference_rows(results)
-    lines += ["", "## Online error estimate (default setting)", ""] + estimate_rows(results)
+    lines += ["", "## Online error estimate against the true relMSE", ""] + estimate_rows(results)
     lines += ["", "Settings: " + "; ".join(f"{k}: {v}" for k, v in SETTING_NOTES.items()), ""]
     for result in results:
-        lines += ["", f"## {result.scene.name}: {result.scene.description}", ""]
+        lines += ["", f"## {result.scene.name}: {result.scene.description}", "",
+                  f"Measured from: {result.load}", ""]
         lines += budget_table(result, options.budgets)
     return "\n".join(lines) + "\n"
 
@@ -691,6 +699,8 @@ def parse_arguments(argv: list[str] | None) -> tuple[Options, bool]:
     p.add_argument("--size", type=int, default=None)
     p.add_argument("--workers", type=int, default=2, help="Haze processes and Cycles threads")
     p.add_argument("--no-cycles", action="store_true")
+    p.add_argument("--settings", nargs="+", default=None, choices=list(SETTING_NOTES),
+                   help="estimator settings to run (default: all those the scene lists)")
     p.add_argument("--reference-target", type=float, default=None, help="relMSE of the references")
     p.add_argument("--reference-time", type=float, default=None, help="seconds per reference at most")
     p.add_argument("--out", type=Path, default=None,
@@ -703,6 +713,7 @@ def parse_arguments(argv: list[str] | None) -> tuple[Options, bool]:
         size=a.size or (64 if quick else 128),
         workers=a.workers,
         cycles=not a.no_cycles,
+        settings=a.settings,
         reference_target=a.reference_target or (1e-3 if quick else 1e-4),
         reference_time=a.reference_time or (15.0 if quick else 1200.0),
         out=a.out if a.out is not None else (None if quick else DOCS),
@@ -723,7 +734,7 @@ def main(argv: list[str] | None = None) -> int:
         options.out.mkdir(parents=True, exist_ok=True)
         (options.out / "tables.md").write_text(text)
         for result in results:
-            svg_plot(result, options.out / f"{result.scene.name}.svg")
+            svg_plot(result, options.out / f"{result.scene.name}.svg", options.size, options.workers)
         print(f"wrote {options.out}/tables.md and plots")
     print(f"total {time.perf_counter() - started:.0f} s")
     return 0
