@@ -45,11 +45,17 @@ class Lobe:
     kind:
       "diffuse"        Lambertian reflection, albedo `color`.
       "dielectric"     smooth glass: Fresnel reflection + refraction, `ior` = inside / outside.
-      "conductor"      smooth mirror tinted by `color` (Cycles' Glossy at roughness 0).
-      "rough_conductor" GGX microfacet reflection, alpha = roughness^2, Fresnel = `color`
-                        (constant, as Cycles' Glossy BSDF), visible-normal sampling.
-      "plastic"        rough coated diffuse: GGX dielectric coat (ior, roughness) over a
-                        diffuse base of albedo `color`.
+      "conductor"      smooth mirror, reflectance per `fresnel` (Cycles' Glossy/Metallic at
+                        roughness 0).
+      "rough_conductor" GGX microfacet reflection, alpha = roughness^2, reflectance per
+                        `fresnel`, visible-normal sampling.
+      "plastic"        Cycles' Principled dielectric: a GGX specular layer (ior, roughness)
+                        over a diffuse base of albedo `color` weighted by 1 - E(wo).
+
+    fresnel (conductors only):
+      "constant"       reflectance = `color` at every angle (Cycles' Glossy BSDF).
+      "f82"            Cycles' F82-tint Schlick curve: F0 = `color`, and near 82 degrees
+                        Schlick's value times `tint` (Principled metallic, Metallic BSDF).
       "transparent"    straight pass-through tinted by `color` (Cycles' Transparent BSDF).
     """
 
@@ -59,6 +65,8 @@ class Lobe:
     roughness: float = 0.0  # Blender roughness in [0, 1]; alpha = roughness^2
     ior: float = 1.5  # > 0; the medium behind the front face over the one in front
     sides: str = "both"  # "front", "back" or "both": faces on which the lobe exists
+    fresnel: str = "constant"  # conductors: "constant" or "f82"
+    tint: RGB = (1.0, 1.0, 1.0)  # conductors with fresnel "f82": edge tint in [0, 1]
 
 
 @dataclass

@@ -50,6 +50,8 @@ LIGHT_TYPES: dict[str, type] = {"point": PointLight, "spot": SpotLight, "sun": S
 MEDIUM_TYPES = ("homogeneous", "grid")
 LOBE_KINDS = ("diffuse", "dielectric", "conductor", "rough_conductor", "plastic", "transparent")
 SIDES = ("front", "back", "both")
+FRESNEL_MODES = ("constant", "f82")
+CONDUCTOR_KINDS = ("conductor", "rough_conductor")
 FOV_AXES = ("x", "y")
 SAMPLING_MODES = ("mis", "nee", "bsdf")
 TRANSMITTANCE_MODES = ("ratio", "delta")
@@ -398,6 +400,11 @@ def _check_lobe(lobe: Lobe, path: str) -> None:
     _require(roughness_ok, f"{path}.roughness", f"must be in [0, 1], got {lobe.roughness}")
     _require(lobe.ior > 0.0, f"{path}.ior", f"must be > 0, got {lobe.ior}")
     _check_choice(lobe.sides, SIDES, f"{path}.sides", "sides value")
+    _check_choice(lobe.fresnel, FRESNEL_MODES, f"{path}.fresnel", "Fresnel mode")
+    fresnel_ok = lobe.fresnel == "constant" or lobe.kind in CONDUCTOR_KINDS
+    _require(fresnel_ok, f"{path}.fresnel", f"{lobe.fresnel!r} applies to conductors only, not {lobe.kind!r}")
+    tint_ok = len(lobe.tint) == 3 and 0.0 <= min(lobe.tint) and max(lobe.tint) <= 1.0
+    _require(tint_ok, f"{path}.tint", f"must be three numbers in [0, 1], got {lobe.tint}")
 
 
 def _check_mesh(mesh: Mesh, path: str, material_names: set[str], medium_names: set[str]) -> None:

@@ -18,6 +18,8 @@ from renderer.bsdfs import (
     CONDUCTOR,
     DIELECTRIC,
     DIFFUSE,
+    FRESNEL_CONSTANT,
+    FRESNEL_F82,
     LOBE_KINDS,
     PLASTIC,
     ROUGH_CONDUCTOR,
@@ -32,7 +34,7 @@ from renderer.bsdfs.coat_albedo import (
     coat_albedo,
     coat_eta,
 )
-from renderer.bsdfs.fresnel import fresnel_dielectric
+from renderer.bsdfs.fresnel import conductor_fresnel, fresnel_dielectric
 from renderer.bsdfs.lobe import lobe_eval, lobe_is_delta, lobe_sample
 from renderer.bsdfs.material import (
     EVENT_ABSORB,
@@ -40,14 +42,26 @@ from renderer.bsdfs.material import (
     EVENT_PASS_THROUGH,
     EVENT_SCATTER,
     L_COLOR,
+    L_FRESNEL,
     L_IOR,
     L_KIND,
     L_ROUGH,
     L_SIDES,
+    L_TINT,
     L_WEIGHT,
     bsdf_eval,
     bsdf_has_lobes,
     bsdf_sample,
+)
+from renderer.bsdfs.plastic import layer_albedo
+from renderer.bsdfs.spec_albedo import (
+    N_NODES,
+    SPEC_S,
+    f0_from_eta,
+    node_params,
+    remapped_fresnel_lookup,
+    remapped_fresnel_mean,
+    spec_albedo,
 )
 from renderer.bsdfs.table import build_material_table
 from renderer.scene import Lobe, Material
@@ -58,6 +72,7 @@ SUB = 24  # narrow lobe near the pole still spans many quadrature points (SUB^2 
 P_MIN = 1e-3
 Z_MAX = 5.0
 WHITE = (1.0, 1.0, 1.0)
+PLAIN = (FRESNEL_CONSTANT, WHITE)  # the Fresnel arguments of lobes that have none
 
 
 def direction(theta_deg: float, phi_deg: float = 0.0) -> tuple[float, float, float]:
@@ -70,15 +85,15 @@ def direction(theta_deg: float, phi_deg: float = 0.0) -> tuple[float, float, flo
 
 
 @njit(cache=True)
-def _sample_lobe(kind, color, rough, ior, wo, n, seed):
+def _sample_lobe(kind, color, rough, ior, fresnel, tint, wo, n, seed):
     np.random.seed(seed)
     wi = np.zeros((n, 3))
     weight = np.zeros((n, 3))
     pdf = np.zeros(n)
     delta = np.zeros(n, np.bool_)
     for k in range(n):
-        d, w, p, dl = lobe_sample(kind, color, rough, ior, wo, np.random.random(), np.random.random(),
-                                  np.random.random())
+        d, w, p, dl = lobe_sample(kind, color, rough, ior, fresnel, tint, wo, np.random.random(),
+                                  np.random.random(), np.random.random())
         wi[k, 0], wi[k, 1], wi[k, 2] = d
         weight[k, 0], weight[k, 1], weight[k, 2] = w
         pdf[k] = p
@@ -87,12 +102,12 @@ def _sample_lobe(kind, color, rough, ior, wo, n, seed):
 
 
 @njit(cache=True)
-def _eval_lobe_at(kind, color, rough, ior, wo, wi):
+def _eval_lobe_at(kind, color, rough, ior, fresnel, tint, wo, wi):
     n = wi.shape[0]
     f = np.zeros((n, 3))
     pdf = np.zeros(n)
     for k in range(n):
-        fk, pk = lobe_eval(kind, color, rough, ior, wo, (wi[k, 0], wi[k, 1], wi[k, 2]))
+        fk, pk = lobe_eval(kind, color, rough, ior, fresnel, tint, wo, (wi[k, 0], wi[k, 1], wi[k, 2]))
         f[k, 0], f[k, 1], f[k, 2] = fk
         pdf[k] = pk
     return f, pdf
@@ -157,8 +172,8 @@ def _sphere_quadrature(eval_fn, args, wo, n_theta, n_phi, sub):
 
 @njit(cache=True)
 def _lobe_eval_fn(args, wo, wi):
-    kind, color, rough, ior = args
-    return lobe_eval(kind, color, rough, ior, wo, wi)
+    kind, color, rough, ior, fresnel, tint = args
+    return lobe_eval(kind, color, rough, ior, fresnel, tint, wo, wi)
 
 
 @njit(cache=True)
@@ -255,16 +270,17 @@ def assert_mean(samples: np.ndarray, expected, extra_err=0.0, what: str = "") ->
     assert np.all(np.abs(mean - expected) <= bound), f"{what}: mean {mean} expected {expected} +- {bound}"
 
 
-def lobe_quadrature(kind, color, rough, ior, wo):
+def lobe_quadrature(kind, color, rough, ior, fresnel, tint, wo):
     """Per-bin pdf integrals and albedo, with the change from halving the step as error bound."""
-    args = (kind, color, rough, ior)
+    args = (kind, color, rough, ior, fresnel, tint)
     bins, albedo = _sphere_quadrature(_lobe_eval_fn, args, wo, N_THETA, N_PHI, SUB)
     bins2, albedo2 = _sphere_quadrature(_lobe_eval_fn, args, wo, N_THETA, N_PHI, 2 * SUB)
     return bins2, albedo2, np.abs(bins2 - bins).sum(), np.abs(albedo2 - albedo)
 
 
 # ---------------------------------------------------------------------------------------------
-# Lobe configurations: (kind, color, roughness, ior, wo).
+# Lobe configurations: (kind, color, roughness, ior, wo), or with the conductors' Fresnel
+# mode and tint appended: (kind, color, roughness, ior, wo, fresnel, tint).
 
 BACK = -1.0  # marks a wo seen from the back face
 
@@ -278,6 +294,10 @@ NON_DELTA_CASES = [
     (ROUGH_CONDUCTOR, WHITE, 0.5, 1.5, direction(85, 300)),
     (ROUGH_CONDUCTOR, WHITE, 1.0, 1.5, direction(70)),
     (ROUGH_CONDUCTOR, WHITE, 0.6, 1.5, direction(120, 10)),  # back face
+    (ROUGH_CONDUCTOR, (0.9, 0.6, 0.3), 0.35, 1.5, direction(50), FRESNEL_F82, WHITE),
+    (ROUGH_CONDUCTOR, WHITE, 0.5, 1.5, direction(80, 20), FRESNEL_F82, WHITE),
+    (ROUGH_CONDUCTOR, (0.05, 0.4, 0.9), 0.7, 1.5, direction(70), FRESNEL_F82, (0.3, 0.6, 1.0)),
+    (ROUGH_CONDUCTOR, (0.2, 0.2, 0.2), 0.3, 1.5, direction(110, 60), FRESNEL_F82, (0.0, 0.5, 1.0)),
     (PLASTIC, (0.7, 0.2, 0.1), 0.3, 1.5, direction(20)),
     (PLASTIC, WHITE, 0.3, 1.5, direction(70, 100)),
     (PLASTIC, WHITE, 0.8, 2.2, direction(45)),
@@ -288,10 +308,18 @@ NON_DELTA_CASES = [
 ]
 
 
+def unpack(case):
+    """(kind, color, roughness, ior, fresnel, tint, wo) of a case."""
+    kind, color, rough, ior, wo = case[:5]
+    fresnel, tint = case[5:] if len(case) > 5 else (FRESNEL_CONSTANT, WHITE)
+    return kind, color, rough, ior, fresnel, tint, wo
+
+
 def case_id(case) -> str:
-    kind, color, rough, ior, wo = case
+    kind, color, rough, ior, fresnel, tint, wo = unpack(case)
     name = {v: k for k, v in LOBE_KINDS.items()}[kind]
-    return f"{name}-r{rough}-ior{ior}-woz{wo[2]:.2f}"
+    suffix = "-f82" if fresnel == FRESNEL_F82 else ""
+    return f"{name}{suffix}-r{rough}-ior{ior}-woz{wo[2]:.2f}"
 
 
 @pytest.mark.parametrize("case", NON_DELTA_CASES, ids=case_id)
@@ -299,8 +327,8 @@ def test_lobe_sampling_matches_pdf(case):
     """(a) chi-square of sampled wi against the binned pdf; (b) the pdf integrates to the
     probability of a non-delta, non-failed sample; (d) E[weight] = integral of f |cos|, <= 1;
     (e) every sample's weight and pdf equal eval's f |cos| / pdf."""
-    kind, color, rough, ior, wo = case
-    wi, weight, pdf, delta = _sample_lobe(kind, color, rough, ior, wo, N_SAMPLES, 7)
+    kind, color, rough, ior, fresnel, tint, wo = unpack(case)
+    wi, weight, pdf, delta = _sample_lobe(kind, color, rough, ior, fresnel, tint, wo, N_SAMPLES, 7)
     failed = np.all(weight == 0.0, axis=1)
     scatter = ~failed & ~delta
     # Non-delta samples stay on wo's side: these lobes only reflect.
@@ -308,12 +336,12 @@ def test_lobe_sampling_matches_pdf(case):
     assert np.all(pdf[failed] == 0.0)
 
     # (e) sample and eval agree sample by sample (float64 round-off only).
-    f, pdf_eval = _eval_lobe_at(kind, color, rough, ior, wo, wi[scatter])
+    f, pdf_eval = _eval_lobe_at(kind, color, rough, ior, fresnel, tint, wo, wi[scatter])
     np.testing.assert_allclose(pdf[scatter], pdf_eval, rtol=1e-7)
     np.testing.assert_allclose(weight[scatter], f * np.abs(wi[scatter, 2:3]) / pdf_eval[:, None], rtol=1e-7)
 
     # (a) + (b): bins of the sphere plus one cell for "delta or failed".
-    bins, albedo, bins_err, albedo_err = lobe_quadrature(kind, color, rough, ior, wo)
+    bins, albedo, bins_err, albedo_err = lobe_quadrature(kind, color, rough, ior, fresnel, tint, wo)
     mass = bins.sum()
     counts = histogram(wi[scatter])
     observed = np.append(counts.ravel(), np.count_nonzero(~scatter))
@@ -329,6 +357,7 @@ def test_lobe_sampling_matches_pdf(case):
     if kind == PLASTIC and rough == 0.0:
         delta_albedo = fresnel_dielectric(abs(wo[2]), coat_eta(ior))[0]
     assert_mean(weight, albedo + delta_albedo, albedo_err, "albedo")
+
     if color == WHITE:
         se = weight.std(axis=0) / math.sqrt(N_SAMPLES)
         assert np.all(weight.mean(axis=0) <= 1.0 + Z_MAX * se), weight.mean(axis=0)
@@ -338,39 +367,41 @@ def test_diffuse_is_exact():
     """Cosine sampling makes the weight exactly the colour, and the pdf is cos / pi."""
     color = (0.8, 0.5, 0.2)
     wo = direction(35, 10)
-    wi, weight, pdf, delta = _sample_lobe(DIFFUSE, color, 0.0, 1.5, wo, 1000, 3)
+    wi, weight, pdf, delta = _sample_lobe(DIFFUSE, color, 0.0, 1.5, *PLAIN, wo, 1000, 3)
     assert not delta.any()
     np.testing.assert_allclose(weight, np.tile(color, (1000, 1)), rtol=1e-12)
     np.testing.assert_allclose(pdf, wi[:, 2] / math.pi, rtol=1e-12)
-    f, _ = lobe_eval(DIFFUSE, color, 0.0, 1.5, wo, direction(80, 200))
+    f, _ = lobe_eval(DIFFUSE, color, 0.0, 1.5, *PLAIN, wo, direction(80, 200))
     np.testing.assert_allclose(f, np.array(color) / math.pi)
     # Opposite sides: no reflection.
-    assert lobe_eval(DIFFUSE, color, 0.0, 1.5, wo, direction(100))[1] == 0.0
-    assert lobe_eval(DIFFUSE, color, 0.0, 1.5, wo, direction(100))[0] == (0.0, 0.0, 0.0)
+    assert lobe_eval(DIFFUSE, color, 0.0, 1.5, *PLAIN, wo, direction(100))[1] == 0.0
+    assert lobe_eval(DIFFUSE, color, 0.0, 1.5, *PLAIN, wo, direction(100))[0] == (0.0, 0.0, 0.0)
 
 
-@pytest.mark.parametrize("kind, rough, ior", [(DIFFUSE, 0.0, 1.5), (ROUGH_CONDUCTOR, 0.3, 1.5),
-                                              (ROUGH_CONDUCTOR, 0.9, 1.5), (PLASTIC, 0.25, 1.5),
-                                              (PLASTIC, 0.7, 2.5), (PLASTIC, 0.0, 1.5)])
-def test_reciprocity(kind, rough, ior, rng):
-    """(c) f(wo, wi) = f(wi, wo) for reflection lobes, on both faces."""
-    color = (0.7, 0.4, 0.9)
+@pytest.mark.parametrize("kind, rough, fresnel", [(DIFFUSE, 0.0, PLAIN), (ROUGH_CONDUCTOR, 0.3, PLAIN),
+                                                  (ROUGH_CONDUCTOR, 0.9, PLAIN),
+                                                  (ROUGH_CONDUCTOR, 0.4, (FRESNEL_F82, (0.2, 0.7, 1.0)))])
+def test_reciprocity(kind, rough, fresnel, rng):
+    """(c) f(wo, wi) = f(wi, wo) for reflection lobes, on both faces. (Not plastic: Cycles'
+    Principled base is weighted by 1 - E(wo) alone, see test_plastic_base_weight.)"""
+    color, ior = (0.7, 0.4, 0.9), 1.5
     v = rng.normal(size=(2000, 2, 3))
     v /= np.linalg.norm(v, axis=2, keepdims=True)
     v[:, :, 2] = np.abs(v[:, :, 2]) * np.where(rng.random((2000, 1)) < 0.5, 1.0, -1.0)  # same side
     for a, b in v:
         wa, wb = tuple(a), tuple(b)
-        fab = np.array(lobe_eval(kind, color, rough, ior, wa, wb)[0])
-        fba = np.array(lobe_eval(kind, color, rough, ior, wb, wa)[0])
+        fab = np.array(lobe_eval(kind, color, rough, ior, *fresnel, wa, wb)[0])
+        fba = np.array(lobe_eval(kind, color, rough, ior, *fresnel, wb, wa)[0])
         np.testing.assert_allclose(fab, fba, rtol=1e-9, atol=0.0)
         assert np.all(fab > 0.0)
 
 
-@pytest.mark.parametrize("kind", [DIFFUSE, ROUGH_CONDUCTOR, PLASTIC])
-def test_opposite_sides_do_not_reflect(kind):
+@pytest.mark.parametrize("kind, fresnel", [(DIFFUSE, PLAIN), (ROUGH_CONDUCTOR, PLAIN), (PLASTIC, PLAIN),
+                                           (ROUGH_CONDUCTOR, (FRESNEL_F82, WHITE))])
+def test_opposite_sides_do_not_reflect(kind, fresnel):
     wo = direction(30)
     for wi in (direction(120), direction(95, 70)):
-        f, pdf = lobe_eval(kind, WHITE, 0.5, 1.5, wo, wi)
+        f, pdf = lobe_eval(kind, WHITE, 0.5, 1.5, *fresnel, wo, wi)
         assert f == (0.0, 0.0, 0.0) and pdf == 0.0
 
 
@@ -380,11 +411,16 @@ def test_smooth_lobes_and_transparent():
     for wo in (direction(40, 30), direction(140, 210)):
         for kind, rough in ((CONDUCTOR, 0.5), (ROUGH_CONDUCTOR, 0.0), (ROUGH_CONDUCTOR, 5e-4)):
             assert lobe_is_delta(kind, rough)
-            wi, w, pdf, dl = lobe_sample(kind, color, rough, 1.5, wo, 0.3, 0.6, 0.9)
+            wi, w, pdf, dl = lobe_sample(kind, color, rough, 1.5, *PLAIN, wo, 0.3, 0.6, 0.9)
             assert dl and pdf == 1.0 and w == color
             np.testing.assert_allclose(wi, (-wo[0], -wo[1], wo[2]), atol=1e-15)
-            assert lobe_eval(kind, color, rough, 1.5, wo, wi) == ((0.0, 0.0, 0.0), 0.0)
-        wi, w, pdf, dl = lobe_sample(TRANSPARENT, color, 0.0, 1.5, wo, 0.3, 0.6, 0.9)
+            assert lobe_eval(kind, color, rough, 1.5, *PLAIN, wo, wi) == ((0.0, 0.0, 0.0), 0.0)
+            # F82 mode: the weight is the Fresnel curve at the mirror angle.
+            tint = (0.4, 0.7, 1.0)
+            wi, w, pdf, dl = lobe_sample(kind, color, rough, 1.5, FRESNEL_F82, tint, wo, 0.3, 0.6, 0.9)
+            assert dl and pdf == 1.0
+            assert w == conductor_fresnel(FRESNEL_F82, color, tint, abs(wo[2]))
+        wi, w, pdf, dl = lobe_sample(TRANSPARENT, color, 0.0, 1.5, *PLAIN, wo, 0.3, 0.6, 0.9)
         assert dl and w == color and wi == (-wo[0], -wo[1], -wo[2])
     assert not lobe_is_delta(ROUGH_CONDUCTOR, 0.01)
     assert not lobe_is_delta(PLASTIC, 0.0) and not lobe_is_delta(DIFFUSE, 0.0)
@@ -422,10 +458,10 @@ def test_dielectric_reflect_fraction_and_snell(ior, theta):
     furnace: every sample's weight is the colour, so R + T averages exactly 1."""
     wo = direction(theta, 25.0)
     color = (0.9, 0.7, 0.5)
-    wi, weight, pdf, delta = _sample_lobe(DIELECTRIC, color, 0.0, ior, wo, N_SAMPLES, 11)
+    wi, weight, pdf, delta = _sample_lobe(DIELECTRIC, color, 0.0, ior, *PLAIN, wo, N_SAMPLES, 11)
     assert delta.all()
     np.testing.assert_allclose(weight, np.tile(color, (N_SAMPLES, 1)), rtol=0, atol=0)
-    _, white, _, _ = _sample_lobe(DIELECTRIC, WHITE, 0.0, ior, wo, 1000, 12)
+    _, white, _, _ = _sample_lobe(DIELECTRIC, WHITE, 0.0, ior, *PLAIN, wo, 1000, 12)
     assert np.all(white == 1.0)
     outside = wo[2] >= 0
     eta = ior if outside else 1 / ior
@@ -446,7 +482,7 @@ def test_dielectric_reflect_fraction_and_snell(ior, theta):
         assert np.all(np.sign(t[:, 2]) == -np.sign(wo[2]))
         np.testing.assert_allclose(t[:, 0] * wo[1] - t[:, 1] * wo[0], 0.0, atol=1e-15)
         assert np.all(t[:, 0] * wo[0] + t[:, 1] * wo[1] <= 0.0)
-    assert lobe_eval(DIELECTRIC, color, 0.0, ior, wo, tuple(wi[0])) == ((0.0, 0.0, 0.0), 0.0)
+    assert lobe_eval(DIELECTRIC, color, 0.0, ior, *PLAIN, wo, tuple(wi[0])) == ((0.0, 0.0, 0.0), 0.0)
 
 
 def test_dielectric_total_internal_reflection():
@@ -454,11 +490,11 @@ def test_dielectric_total_internal_reflection():
     critical = math.degrees(math.asin(1 / 1.5))
     for theta in (critical + 0.5, 60.0, 89.0):
         wo = direction(180.0 - theta, 40.0)
-        wi, weight, pdf, _ = _sample_lobe(DIELECTRIC, WHITE, 0.0, 1.5, wo, 2000, 5)
+        wi, weight, pdf, _ = _sample_lobe(DIELECTRIC, WHITE, 0.0, 1.5, *PLAIN, wo, 2000, 5)
         assert np.all(wi[:, 2] < 0.0) and np.all(pdf == 1.0) and np.all(weight == 1.0)
     # Just inside the critical angle some light still gets out.
     wo = direction(180.0 - (critical - 2.0))
-    wi, _, _, _ = _sample_lobe(DIELECTRIC, WHITE, 0.0, 1.5, wo, 2000, 5)
+    wi, _, _, _ = _sample_lobe(DIELECTRIC, WHITE, 0.0, 1.5, *PLAIN, wo, 2000, 5)
     assert np.any(wi[:, 2] > 0.0)
 
 
@@ -484,6 +520,77 @@ def test_coat_albedo_table_accuracy():
             assert coat_albedo(mu, 0.0, eta) == pytest.approx(fresnel_dielectric(mu, eta)[0], abs=1e-9)
 
 
+def test_spec_albedo_table_is_cycles_definition():
+    """The specular layer's albedo table: node values are the quadrature of Cycles' definition
+    (checked against a finer quadrature), the lookup returns them exactly on the nodes and is
+    linear between them (Cycles' lookup_table_read_3D), and E = F0 + (1 - F0) s."""
+    rng = np.random.default_rng(5)
+    for k, j, i in rng.integers(1, N_NODES - 1, size=(12, 3)):  # z = 1 is clamped to 0.99
+        rough, mu, eta = node_params(i, j, k)
+        assert abs(SPEC_S[k, j, i] - remapped_fresnel_mean(rough, mu, eta, 1024)) < 1e-4
+        x, y = i / (N_NODES - 1), j / (N_NODES - 1)
+        assert remapped_fresnel_lookup(x, y, eta) == pytest.approx(SPEC_S[k, j, i], abs=1e-9)
+        if i < N_NODES - 1:  # halfway between two roughness nodes
+            mid = remapped_fresnel_lookup(x + 0.5 / (N_NODES - 1), y, eta)
+            assert mid == pytest.approx(0.5 * (SPEC_S[k, j, i] + SPEC_S[k, j, i + 1]), abs=1e-9)
+        f0 = f0_from_eta(eta)
+        assert spec_albedo(y, x, eta) == pytest.approx(f0 + (1 - f0) * SPEC_S[k, j, i], abs=1e-9)
+    # Cycles' first z slice is index exactly 1 in single precision: nothing reflects.
+    assert np.all(SPEC_S[0] < 1e-15)
+    # Smooth layer (roughness node 0): s is the remapped Fresnel at the node's own angle.
+    for j in (3, 8, 15):
+        rough, mu, eta = node_params(0, j, 6)
+        f0 = f0_from_eta(eta)
+        assert SPEC_S[6, j, 0] == pytest.approx((fresnel_dielectric(mu, eta)[0] - f0) / (1 - f0), abs=1e-4)
+
+
+def test_plastic_energy_floor():
+    """The base weight 1 - max(E, E_ss) keeps a white plastic's albedo E_ss + (1 - max(E, E_ss))
+    <= 1 within the accuracy of the E_ss table (4e-3 for mu >= 0.01, its tested range), also at
+    grazing angles on nearly smooth layers, where Cycles' coarse estimate E alone falls below
+    E_ss by up to 0.03."""
+    worst_cycles = 0.0
+    for mu in (0.01, 0.02, 0.05, 0.1, 0.15, 0.4):
+        for rough in (0.03, 0.1, 0.3, 0.8):
+            for eta in (1.05, 1.5, 2.4):
+                e_ss = _coat_albedo_quadrature(mu, rough * rough, eta, 400)
+                assert e_ss - layer_albedo(mu, rough, eta) < 4e-3, (mu, rough, eta)
+                worst_cycles = max(worst_cycles, e_ss - spec_albedo(mu, rough, eta))
+    assert worst_cycles > 0.01  # the floor matters: Cycles' estimate alone would gain energy
+
+
+@pytest.mark.parametrize("rough, ior", [(0.0, 1.5), (0.0, 2.4), (0.25, 1.45), (0.6, 1.5)])
+def test_plastic_base_weight(rough, ior):
+    """Cycles' Principled BSDF: the diffuse base is color / pi (1 - E(wo)), independent of wi
+    (no 1 - E(wi) factor). With a smooth layer eval holds only the base; for a rough one the
+    base is what remains after subtracting the layer (the same lobe with a black base)."""
+    color = (0.6, 0.3, 0.1)
+    for wo in (direction(10), direction(60, 30), direction(85, 200)):
+        kd = (1.0 - layer_albedo(wo[2], rough, ior)) / math.pi
+        for wi in (direction(5), direction(45, 100), direction(80, 250)):
+            f = np.array(lobe_eval(PLASTIC, color, rough, ior, *PLAIN, wo, wi)[0])
+            f_layer = np.array(lobe_eval(PLASTIC, (0.0, 0.0, 0.0), rough, ior, *PLAIN, wo, wi)[0])
+            np.testing.assert_allclose(f - f_layer, np.array(color) * kd, rtol=1e-9, atol=1e-15)
+            if rough == 0.0:
+                assert np.all(f_layer == 0.0)
+
+
+def test_f82_fresnel():
+    """Cycles' F82-tint curve: F0 at normal incidence, 1 at grazing, Schlick with a white tint,
+    and Schlick x tint at cos = 1/7 (about 82 degrees); the constant mode is the colour."""
+    f0 = (0.9, 0.6, 0.05)
+    tint = (1.0, 0.5, 0.0)
+    np.testing.assert_allclose(conductor_fresnel(FRESNEL_F82, f0, tint, 1.0), f0, atol=1e-12)
+    np.testing.assert_allclose(conductor_fresnel(FRESNEL_F82, f0, tint, 0.0), 1.0, atol=1e-12)
+    for c in (0.05, 1 / 7, 0.3, 0.7):
+        schlick = np.array(f0) + (1 - np.array(f0)) * (1 - c) ** 5
+        np.testing.assert_allclose(conductor_fresnel(FRESNEL_F82, f0, WHITE, c), schlick, rtol=1e-12)
+    schlick82 = np.array(f0) + (1 - np.array(f0)) * (6 / 7) ** 5
+    np.testing.assert_allclose(conductor_fresnel(FRESNEL_F82, f0, tint, 1 / 7), schlick82 * np.array(tint),
+                               rtol=1e-12, atol=1e-12)
+    assert conductor_fresnel(FRESNEL_CONSTANT, f0, tint, 0.2) == f0
+
+
 # ---------------------------------------------------------------------------------------------
 # Material mixtures.
 
@@ -491,6 +598,8 @@ MIXTURES = [
     Material("glossy_diffuse", [
         Lobe("diffuse", weight=(0.5, 0.5, 0.5), color=(0.8, 0.3, 0.2)),
         Lobe("rough_conductor", weight=(0.5, 0.4, 0.3), color=(0.9, 0.9, 0.6), roughness=0.35),
+        Lobe("rough_conductor", weight=(0.2, 0.2, 0.2), color=(0.05, 0.02, 0.01), roughness=0.5,
+             fresnel="f82", tint=(0.5, 0.8, 1.0)),
     ]),
     Material("layered", [
         Lobe("plastic", weight=(0.6, 0.6, 0.6), color=(0.2, 0.5, 0.8), roughness=0.0, ior=1.5),
@@ -508,19 +617,27 @@ def test_material_table_layout():
     mats, lobes = MT
     assert mats.dtype == np.int32 and lobes.dtype == np.float32
     assert mats.flags.c_contiguous and lobes.flags.c_contiguous
-    assert mats.tolist() == [[0, 2], [2, 4], [6, 1], [7, 0]]
-    assert lobes[:, L_KIND].tolist() == [DIFFUSE, ROUGH_CONDUCTOR, PLASTIC, ROUGH_CONDUCTOR, TRANSPARENT,
-                                         DIELECTRIC, DIFFUSE]
-    assert lobes[:, L_SIDES].tolist() == [3, 3, 3, 3, 1, 2, 1]
+    assert mats.tolist() == [[0, 3], [3, 4], [7, 1], [8, 0]]
+    assert lobes.shape[1] == 14
+    assert lobes[:, L_KIND].tolist() == [DIFFUSE, ROUGH_CONDUCTOR, ROUGH_CONDUCTOR, PLASTIC, ROUGH_CONDUCTOR,
+                                         TRANSPARENT, DIELECTRIC, DIFFUSE]
+    assert lobes[:, L_SIDES].tolist() == [3, 3, 3, 3, 3, 1, 2, 1]
+    fresnel = [FRESNEL_CONSTANT] * 8
+    fresnel[2] = FRESNEL_F82
+    assert lobes[:, L_FRESNEL].tolist() == fresnel
+    np.testing.assert_array_equal(lobes[2, L_TINT:L_TINT + 3], np.float32((0.5, 0.8, 1.0)))
+    np.testing.assert_array_equal(lobes[0, L_TINT:L_TINT + 3], np.float32(WHITE))
     lobe = MIXTURES[1].lobes[1]
-    np.testing.assert_array_equal(lobes[3, L_WEIGHT:L_WEIGHT + 3], np.float32(lobe.weight))
-    np.testing.assert_array_equal(lobes[3, L_COLOR:L_COLOR + 3], np.float32(lobe.color))
-    assert lobes[3, L_ROUGH] == np.float32(lobe.roughness) and lobes[3, L_IOR] == np.float32(lobe.ior)
+    np.testing.assert_array_equal(lobes[4, L_WEIGHT:L_WEIGHT + 3], np.float32(lobe.weight))
+    np.testing.assert_array_equal(lobes[4, L_COLOR:L_COLOR + 3], np.float32(lobe.color))
+    assert lobes[4, L_ROUGH] == np.float32(lobe.roughness) and lobes[4, L_IOR] == np.float32(lobe.ior)
     empty = build_material_table([])
     assert empty[0].shape == (0, 2) and empty[1].shape[0] == 0
     assert bsdf_has_lobes(MT, 3, True) is False  # numba accepts the layout
     with pytest.raises(ValueError):
         build_material_table([Material("bad", [Lobe("velvet")])])
+    with pytest.raises(ValueError):
+        build_material_table([Material("bad", [Lobe("rough_conductor", fresnel="schlick")])])
 
 
 def test_material_sides_and_pass_through():
@@ -567,8 +684,15 @@ def test_material_mixture(m, front, wo):
 
     # Selection probabilities of the delta lobes and their albedo.
     lobes = [lobe for lobe in MIXTURES[m].lobes if lobe.sides in ("both", "front" if front else "back")]
-    sel = np.array([_luminance(lb.weight) if lb.kind in ("dielectric", "plastic")
-                    else _luminance(np.multiply(lb.weight, lb.color)) for lb in lobes])
+    def selection(lb) -> float:
+        if lb.kind in ("dielectric", "plastic"):
+            return _luminance(lb.weight)
+        color = np.array(lb.color)
+        if lb.fresnel == "f82":  # mean reflectance of the F82 curve without its tint term
+            color = color + (1.0 - color) / 21.0
+        return _luminance(np.multiply(lb.weight, color))
+
+    sel = np.array([selection(lb) for lb in lobes])
     sel /= sel.sum()
     delta_albedo = np.zeros(3)
     for lb, ps in zip(lobes, sel):

@@ -24,6 +24,14 @@ LOBE_KINDS: dict[str, int] = {
     "transparent": TRANSPARENT,
 }
 
+# Fresnel of the conductor lobes (column L_FRESNEL of the lobe table):
+#   constant  F = color at every angle (Cycles' Glossy BSDF);
+#   f82       Cycles' F82-tint Schlick curve: F0 = color, the value near 82 degrees scaled by
+#             `tint` (Principled BSDF metallic, Metallic BSDF's F82 mode).
+FRESNEL_CONSTANT = 0
+FRESNEL_F82 = 1
+FRESNEL_MODES: dict[str, int] = {"constant": FRESNEL_CONSTANT, "f82": FRESNEL_F82}
+
 # Roughness below which a GGX lobe is treated as perfectly smooth (alpha = roughness^2 < 1e-6:
 # the lobe is then far narrower than any pixel and D overflows usefulness).
 SMOOTH_ROUGHNESS = 1e-3

@@ -2,9 +2,9 @@
 
 E(mu; roughness, eta) = integral of f_spec(wo, wi) cos(wi) dwi for wo.z = mu, where f_spec
 is the coat's single-scattering GGX reflection with the exact dielectric Fresnel. The
-plastic lobe gives its diffuse base the energy the coat leaves, (1 - E(wo)) (1 - E(wi)) /
-(1 - E_avg) (Kelemen & Szirmay-Kalos 2001; Kulla & Conty 2017), which is reciprocal and
-has albedo exactly E(wo) + color (1 - E(wo)) <= 1.
+plastic lobe uses it as a floor under Cycles' own (coarser) albedo estimate of its specular
+layer (renderer.bsdfs.spec_albedo), which keeps its albedo <= 1 where that estimate falls
+below E; E_avg (the cosine-weighted mean) is tabulated too but no lobe uses it now.
 
 The table is computed offline (it needs ~1e8 GGX evaluations for 1e-4 accuracy, because
 the visible-normal map has square-root edges that slow the quadrature down) and stored next

@@ -1,10 +1,13 @@
-"""Smooth conductor: a perfect mirror tinted by `color` (Cycles' Glossy BSDF at roughness 0).
+"""Smooth conductor: a perfect mirror (Cycles' Glossy / Metallic BSDF at roughness 0).
 
-Cycles' Glossy BSDF uses a constant Fresnel equal to its colour, so the mirror reflects
-`color` at every angle.
+The reflectance follows the lobe's Fresnel mode (renderer.bsdfs FRESNEL_*): a constant
+`color` (Cycles' Glossy BSDF, which bakes its colour into the closure weight), or the F82-tint
+curve at the mirror's angle, cos = wo.z (Principled metallic, Metallic BSDF).
 """
 
 from numba import njit
+
+from renderer.bsdfs.fresnel import conductor_fresnel
 
 _ZERO3 = (0.0, 0.0, 0.0)
 
@@ -16,9 +19,10 @@ def conductor_eval(color, roughness, ior, wo, wi):
 
 
 @njit(cache=True, error_model="numpy", _nrt=False)
-def conductor_sample(color, roughness, ior, wo, u1, u2, u3):
-    """Mirror direction; weight = color. pdf is the discrete probability of the branch (1)."""
+def conductor_sample(color, roughness, ior, fresnel, tint, wo, u1, u2, u3):
+    """Mirror direction; weight = the Fresnel reflectance. pdf is the discrete probability
+    of the branch (1)."""
     wi = (-wo[0], -wo[1], wo[2])
     if wo[2] <= 0.0:
         return wi, _ZERO3, 0.0, True
-    return wi, (color[0], color[1], color[2]), 1.0, True
+    return wi, conductor_fresnel(fresnel, color, tint, wo[2]), 1.0, True

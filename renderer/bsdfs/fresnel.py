@@ -1,8 +1,10 @@
-"""Fresnel reflectance of a smooth dielectric interface."""
+"""Fresnel reflectance: a smooth dielectric interface, and the conductor lobes' modes."""
 
 import math
 
 from numba import njit
+
+from renderer.bsdfs import FRESNEL_F82
 
 
 @njit(cache=True, error_model="numpy", _nrt=False)
@@ -21,3 +23,25 @@ def fresnel_dielectric(cos_i, eta):
     r_s = (cos_i - eta * cos_t) / (cos_i + eta * cos_t)
     r_p = (eta * cos_i - cos_t) / (eta * cos_i + cos_t)
     return 0.5 * (r_s * r_s + r_p * r_p), cos_t
+
+
+@njit(cache=True, error_model="numpy", _nrt=False)
+def _f82_channel(cos_i, f0, tint):
+    """One channel of Cycles' F82-tint curve (Kutz et al., "Novel aspects of the Adobe
+    Standard Material"): Schlick's F0 + (1 - F0)(1 - cos)^5 minus b cos (1 - cos)^6, with b
+    chosen so that at cos = 1/7 (about 82 degrees) the curve is Schlick's value times tint."""
+    c82 = 6.0 / 7.0
+    c82_5 = c82 * c82 * c82 * c82 * c82
+    b = (f0 + (1.0 - f0) * c82_5) * 7.0 / (c82_5 * c82) * (1.0 - tint)
+    s = min(max(1.0 - cos_i, 0.0), 1.0)
+    s5 = s * s * s * s * s
+    return min(max(f0 + (1.0 - f0) * s5 - b * cos_i * s5 * s, 0.0), 1.0)
+
+
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+def conductor_fresnel(fresnel, color, tint, cos_i):
+    """Reflectance (rgb) of a conductor lobe at cos_i = wo.h (see renderer.bsdfs FRESNEL_*)."""
+    if fresnel == FRESNEL_F82:
+        return (_f82_channel(cos_i, color[0], tint[0]), _f82_channel(cos_i, color[1], tint[1]),
+                _f82_channel(cos_i, color[2], tint[2]))
+    return (color[0], color[1], color[2])

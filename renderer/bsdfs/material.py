@@ -2,17 +2,20 @@
 
 The material table `mt` (renderer.bsdfs.table.build_material_table) is the pair
     (mats i32 (M, 2): first lobe, lobe count;
-     lobes f32 (L, 10): kind, weight rgb, color rgb, roughness, ior, sides bitmask
-                        (1 = front, 2 = back); see the L_* column constants).
+     lobes f32 (L, 14): kind, weight rgb, color rgb, roughness, ior, sides bitmask
+                        (1 = front, 2 = back), Fresnel mode, tint rgb; see the L_* column
+                        constants).
 Two arrays rather than one per field: every array handed to a non-inlined numba function
 costs a reference-count round trip per call, which dominated shading time (measured: 296
 ns per diffuse bsdf_sample with eight arrays).
 
 Sampling picks one lobe with probability proportional to its selection weight
 luminance(weight * color) (luminance(weight) for dielectric and plastic, whose coat reflects
-regardless of colour), over the lobes present on the hit side. A non-delta sample is then
-re-weighted with the whole material (f_total |cos| / pdf_total, pdf_total = the mixture pdf
-sum_j P_j pdf_j), which is what MIS with light sampling needs.
+regardless of colour; for an F82 conductor `color` is F0 and the mean reflectance over the
+hemisphere, mix(F0, 1, 1/21), is used instead, which is > 0 even for a black F0), over the
+lobes present on the hit side. A non-delta sample is then re-weighted with the whole
+material (f_total |cos| / pdf_total, pdf_total = the mixture pdf sum_j P_j pdf_j), which is
+what MIS with light sampling needs.
 
 Events of bsdf_sample:
     0 ABSORB        no valid sample; stop the path
@@ -23,7 +26,7 @@ Events of bsdf_sample:
 
 from numba import njit
 
-from renderer.bsdfs import DIELECTRIC, PLASTIC, SIDE_BACK, SIDE_FRONT, TRANSPARENT
+from renderer.bsdfs import DIELECTRIC, FRESNEL_F82, PLASTIC, SIDE_BACK, SIDE_FRONT, TRANSPARENT
 from renderer.bsdfs.lobe import lobe_eval, lobe_sample
 from renderer.kernels.vecmath import luminance, mul, scale
 
@@ -35,7 +38,8 @@ EVENT_PASS_THROUGH = 3
 _ZERO3 = (0.0, 0.0, 0.0)
 
 
-L_KIND, L_WEIGHT, L_COLOR, L_ROUGH, L_IOR, L_SIDES = 0, 1, 4, 7, 8, 9
+L_KIND, L_WEIGHT, L_COLOR, L_ROUGH, L_IOR, L_SIDES, L_FRESNEL, L_TINT = 0, 1, 4, 7, 8, 9, 10, 11
+L_COLUMNS = 14
 
 
 @njit(cache=True, error_model="numpy", _nrt=False, inline="always")
@@ -49,15 +53,20 @@ def _row3(a, j, c):
 
 
 @njit(cache=True, error_model="numpy", _nrt=False, inline="always")
-def _selection_weight(kind, weight, color):
+def _selection_weight(kind, weight, color, fresnel):
     if kind == DIELECTRIC or kind == PLASTIC:
         return max(luminance(weight), 0.0)
+    if fresnel == FRESNEL_F82:
+        k = 1.0 / 21.0
+        color = (color[0] + k * (1.0 - color[0]), color[1] + k * (1.0 - color[1]),
+                 color[2] + k * (1.0 - color[2]))
     return max(luminance(mul(weight, color)), 0.0)
 
 
 @njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def _lobe_selection(lobes, j):
-    return _selection_weight(int(lobes[j, L_KIND]), _row3(lobes, j, L_WEIGHT), _row3(lobes, j, L_COLOR))
+    return _selection_weight(int(lobes[j, L_KIND]), _row3(lobes, j, L_WEIGHT), _row3(lobes, j, L_COLOR),
+                             int(lobes[j, L_FRESNEL]))
 
 
 @njit(cache=True, error_model="numpy", _nrt=False, inline="always")
@@ -84,9 +93,11 @@ def bsdf_eval(mt, m, front, wo, wi):
         kind = int(lobes[j, L_KIND])
         weight = _row3(lobes, j, L_WEIGHT)
         color = _row3(lobes, j, L_COLOR)
-        sel = _selection_weight(kind, weight, color)
+        fresnel = int(lobes[j, L_FRESNEL])
+        sel = _selection_weight(kind, weight, color, fresnel)
         total += sel
-        fj, pj = lobe_eval(kind, color, float(lobes[j, L_ROUGH]), float(lobes[j, L_IOR]), wo, wi)
+        fj, pj = lobe_eval(kind, color, float(lobes[j, L_ROUGH]), float(lobes[j, L_IOR]), fresnel,
+                           _row3(lobes, j, L_TINT), wo, wi)
         f = (f[0] + weight[0] * fj[0], f[1] + weight[1] * fj[1], f[2] + weight[2] * fj[2])
         pdf += sel * pj
     return f, (pdf / total if total > 0.0 else 0.0)
@@ -132,7 +143,8 @@ def bsdf_sample(mt, m, front, wo, u_sel, u1, u2, u3):
     weight = _row3(lobes, chosen, L_WEIGHT)
     color = _row3(lobes, chosen, L_COLOR)
     wi, w, pdf, delta = lobe_sample(
-        kind, color, float(lobes[chosen, L_ROUGH]), float(lobes[chosen, L_IOR]), wo, u1, u2, u3
+        kind, color, float(lobes[chosen, L_ROUGH]), float(lobes[chosen, L_IOR]),
+        int(lobes[chosen, L_FRESNEL]), _row3(lobes, chosen, L_TINT), wo, u1, u2, u3
     )
     if w[0] == 0.0 and w[1] == 0.0 and w[2] == 0.0:
         return wi, _ZERO3, 0.0, EVENT_ABSORB

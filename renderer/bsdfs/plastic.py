@@ -1,24 +1,32 @@
-"""Plastic: a GGX dielectric coat (ior, roughness) over a Lambertian base of albedo `color`.
+"""Plastic: Cycles' Principled BSDF dielectric part, a GGX specular layer over a diffuse base.
 
-    f = f_coat(wo, wi) + color / pi * (1 - E(wo)) (1 - E(wi)) / (1 - E_avg)
+    f = f_spec(wo, wi) + color / pi * (1 - max(E(wo), E_ss(wo)))
 
-f_coat = F(wo.h) D G2 / (4 wo.z wi.z) is the coat's own (uncoloured) reflection with the
-exact dielectric Fresnel; E is its directional albedo and E_avg its cosine-weighted mean
-(renderer.bsdfs.coat_albedo). The base only receives what the coat does not reflect, so
-the albedo is E(wo) + color (1 - E(wo)) <= 1 whatever the colour, and f stays reciprocal.
-This is an energy-coupling model, not a simulation of light bouncing inside the layer.
+f_spec = F(wo.h) D G2 / (4 wo.z wi.z) is the layer's own (uncoloured) reflection with the
+exact dielectric Fresnel of index `ior`. The base is Lambertian, weighted by what Cycles
+estimates the layer leaves for the view direction: 1 - E(wo), with E Cycles' tabulated
+albedo estimate (renderer.bsdfs.spec_albedo; svm/closure.h `closure_layering_weight`).
+There is no (1 - E(wi)) factor, exactly as in Cycles, so f is not reciprocal; a path tracer
+that only follows paths from the camera never needs it to be.
 
-Below SMOOTH_ROUGHNESS the coat is a smooth interface: its reflection is a delta lobe
-(E = Fresnel), sampled with `is_delta` True and absent from eval; the base stays diffuse.
-The coat index is max(ior, 1/ior) clamped to [1, 4] (the table's range).
+The albedo is E_ss(wo) + color (1 - E(wo)), E_ss being the layer's single-scattering
+albedo. The exact E is >= E_ss, but Cycles' coarse table interpolates below E_ss near
+grazing at low roughness (by up to 0.03 for mu < 0.15), where Cycles' Principled BSDF
+reflects a little more than it receives. Haze takes the larger of E and its own tabulated
+E_ss (renderer.bsdfs.coat_albedo, within 4e-3 of exact for mu >= 0.01, 6e-3 at mu = 0.005),
+so the albedo stays <= 1 within that accuracy, and differs from Cycles only where Cycles
+creates energy.
+
+Below SMOOTH_ROUGHNESS the layer is a smooth interface: its reflection is a delta lobe
+(weight F), sampled with `is_delta` True and absent from eval; the base stays diffuse.
+The layer's index is max(ior, 1/ior) (E_ss is looked up at most at index 4, its table's range).
 """
 
-import math
 
 from numba import njit
 
 from renderer.bsdfs import SMOOTH_ROUGHNESS
-from renderer.bsdfs.coat_albedo import coat_albedo, coat_albedo_avg, coat_eta
+from renderer.bsdfs.coat_albedo import coat_albedo, coat_eta
 from renderer.bsdfs.fresnel import fresnel_dielectric
 from renderer.bsdfs.microfacet import (
     ggx_D,
@@ -27,6 +35,7 @@ from renderer.bsdfs.microfacet import (
     ggx_sample_visible_normal,
     reflect,
 )
+from renderer.bsdfs.spec_albedo import spec_albedo
 from renderer.bsdfs.warp import square_to_cosine_hemisphere
 from renderer.kernels.vecmath import INV_PI, normalize
 
@@ -35,20 +44,33 @@ _ZERO3 = (0.0, 0.0, 0.0)
 
 @njit(cache=True, error_model="numpy", _nrt=False)
 def _coat_probability(color, e_o):
-    """Chance of sampling the coat: its share of the albedo E(wo) + avg(color) (1 - E(wo))."""
+    """Chance of sampling the layer: its share of E(wo) + avg(color) (1 - E(wo))."""
     base = (color[0] + color[1] + color[2]) / 3.0 * (1.0 - e_o)
     total = e_o + max(base, 0.0)
     return e_o / total if total > 0.0 else 1.0
 
 
 @njit(cache=True, error_model="numpy", _nrt=False)
+def _layer_eta(ior):
+    """The layer's relative index, >= 1 (the layer is seen from outside)."""
+    return ior if ior >= 1.0 else 1.0 / max(ior, 1e-6)
+
+
+@njit(cache=True, error_model="numpy", _nrt=False)
+def layer_albedo(mu, roughness, eta):
+    """max(Cycles' estimate E, the single-scattering E_ss) of the layer for wo.z = mu."""
+    e = spec_albedo(mu, roughness, eta)
+    e_ss = coat_albedo(mu, roughness, coat_eta(eta))
+    return min(max(e, e_ss, 0.0), 1.0)
+
+
+@njit(cache=True, error_model="numpy", _nrt=False)
 def plastic_eval(color, roughness, ior, wo, wi):
     if wo[2] <= 0.0 or wi[2] <= 0.0:
         return _ZERO3, 0.0
-    eta = coat_eta(ior)
-    e_o = coat_albedo(wo[2], roughness, eta)
-    e_i = coat_albedo(wi[2], roughness, eta)
-    kd = (1.0 - e_o) * (1.0 - e_i) / (math.pi * (1.0 - coat_albedo_avg(roughness, eta)))
+    eta = _layer_eta(ior)
+    e_o = layer_albedo(wo[2], roughness, eta)
+    kd = (1.0 - e_o) * INV_PI
     p_coat = _coat_probability(color, e_o)
     spec = 0.0
     pdf = (1.0 - p_coat) * wi[2] * INV_PI
@@ -65,12 +87,12 @@ def plastic_eval(color, roughness, ior, wo, wi):
 
 @njit(cache=True, error_model="numpy", _nrt=False)
 def plastic_sample(color, roughness, ior, wo, u1, u2, u3):
-    """u3 picks coat or base; (u1, u2) sample the chosen one. The weight uses the full
+    """u3 picks layer or base; (u1, u2) sample the chosen one. The weight uses the full
     mixture f and pdf (of the non-delta parts), so it equals eval's f cos / pdf."""
     if wo[2] <= 0.0:
         return (0.0, 0.0, 1.0), _ZERO3, 0.0, False
-    eta = coat_eta(ior)
-    e_o = coat_albedo(wo[2], roughness, eta)
+    eta = _layer_eta(ior)
+    e_o = layer_albedo(wo[2], roughness, eta)
     p_coat = _coat_probability(color, e_o)
     smooth = roughness < SMOOTH_ROUGHNESS
     if u3 < p_coat:

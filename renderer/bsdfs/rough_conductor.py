@@ -1,15 +1,20 @@
-"""Rough conductor: GGX microfacet reflection, Cycles' Glossy BSDF.
+"""Rough conductor: GGX microfacet reflection, Cycles' Glossy and Metallic BSDFs and the
+Principled BSDF's metallic component.
 
-f = F D G2 / (4 |wo.z| |wi.z|) with alpha = roughness^2, height-correlated Smith G2 and,
-like Cycles' Glossy BSDF, a constant Fresnel F = color (Cycles bakes the colour into the
-closure weight, svm/closure.h + bsdf_microfacet_setup_fresnel_constant). We keep the
-single-scattering lobe: Cycles' default "Multiscatter GGX" adds back the energy lost by
-G2 at high roughness, which this lobe does not (it is darker by up to ~1/3 at roughness 1
-and grazing view, and identical at low roughness).
+f = F(wo.h) D G2 / (4 |wo.z| |wi.z|) with alpha = roughness^2 and height-correlated Smith
+G2. The Fresnel F follows the lobe's mode (renderer.bsdfs FRESNEL_*): constant = `color`, as
+Cycles' Glossy BSDF (which bakes the colour into the closure weight, svm/closure.h +
+bsdf_microfacet_setup_fresnel_constant), or Cycles' F82-tint curve with F0 = `color` and
+edge tint `tint` (Principled metallic, Metallic BSDF; bsdf_microfacet_setup_fresnel_f82_tint).
+We keep the single-scattering lobe, which is what Cycles renders with the GGX distribution:
+Cycles' "Multiscatter GGX" adds back the energy lost by G2 at high roughness, which this lobe
+does not (it is darker by up to ~1/3 at roughness 1 and grazing view, and identical at low
+roughness).
 """
 
 from numba import njit
 
+from renderer.bsdfs.fresnel import conductor_fresnel
 from renderer.bsdfs.microfacet import (
     ggx_D,
     ggx_G1,
@@ -24,19 +29,20 @@ _ZERO3 = (0.0, 0.0, 0.0)
 
 
 @njit(cache=True, error_model="numpy", _nrt=False)
-def rough_conductor_eval(color, roughness, ior, wo, wi):
+def rough_conductor_eval(color, roughness, ior, fresnel, tint, wo, wi):
     if wo[2] <= 0.0 or wi[2] <= 0.0:
         return _ZERO3, 0.0
     alpha = max(roughness * roughness, 1e-7)
     h = normalize((wo[0] + wi[0], wo[1] + wi[1], wo[2] + wi[2]))
     d = ggx_D(alpha, h)
     f = d * ggx_G2(alpha, wo, wi) / (4.0 * wo[2] * wi[2])
-    return scale(color, f), ggx_reflection_pdf(alpha, wo, wi)
+    cos_oh = wo[0] * h[0] + wo[1] * h[1] + wo[2] * h[2]
+    return scale(conductor_fresnel(fresnel, color, tint, cos_oh), f), ggx_reflection_pdf(alpha, wo, wi)
 
 
 @njit(cache=True, error_model="numpy", _nrt=False)
-def rough_conductor_sample(color, roughness, ior, wo, u1, u2, u3):
-    """Visible-normal sampling; the weight f cos / pdf reduces to color * G2 / G1(wo)."""
+def rough_conductor_sample(color, roughness, ior, fresnel, tint, wo, u1, u2, u3):
+    """Visible-normal sampling; the weight f cos / pdf reduces to F(wo.h) G2 / G1(wo)."""
     if wo[2] <= 0.0:
         return (0.0, 0.0, 1.0), _ZERO3, 0.0, False
     alpha = max(roughness * roughness, 1e-7)
@@ -48,4 +54,5 @@ def rough_conductor_sample(color, roughness, ior, wo, u1, u2, u3):
     if pdf <= 0.0:
         return wi, _ZERO3, 0.0, False
     w = ggx_G2(alpha, wo, wi) / ggx_G1(alpha, wo)
-    return wi, scale(color, w), pdf, False
+    cos_oh = wo[0] * h[0] + wo[1] * h[1] + wo[2] * h[2]
+    return wi, scale(conductor_fresnel(fresnel, color, tint, cos_oh), w), pdf, False
