@@ -139,11 +139,7 @@ def stack(paths: list[str]) -> np.ndarray:
 
 
 # Renderer features that do not match Cycles yet (reported to the renderer's owners).
-KNOWN_DIFFERENCES = {
-    "principled": "renderer 'plastic' couples the coat as (1-E(wo))(1-E(wi))/(1-E_avg); Cycles' "
-                  "Principled weights the diffuse base by (1-E(wo)) only (+3% under a point light), and "
-                  "'rough_conductor' uses a constant Fresnel where Principled metals use Schlick",
-}
+KNOWN_DIFFERENCES: dict[str, str] = {}
 
 
 def scene_cases() -> list:

@@ -47,12 +47,16 @@ class Term:
     roughness: float = 0.0
     ior: float = 1.5
     anisotropy: float = 0.0
+    fresnel: str = "constant"  # conductors: "constant" (colour) or "f82" (F0 = colour, edge tint)
+    tint: tuple[float, float, float] = (1.0, 1.0, 1.0)
 
     def same_closure(self, other: Term) -> bool:
         return (
             self.kind == other.kind
+            and self.fresnel == other.fresnel
             and np.allclose(self.weight, other.weight, rtol=1e-6, atol=1e-9)
             and np.allclose(self.color, other.color, rtol=1e-6, atol=1e-9)
+            and np.allclose(self.tint, other.tint, rtol=1e-6, atol=1e-9)
             and math.isclose(self.roughness, other.roughness, abs_tol=1e-9)
             and math.isclose(self.ior, other.ior, abs_tol=1e-9)
             and math.isclose(self.anisotropy, other.anisotropy, abs_tol=1e-9)
@@ -578,22 +582,47 @@ def shader_glossy(read: Inputs) -> list[Term]:
                  roughness=roughness)]
 
 
-def conductor_f0(ior: np.ndarray, extinction: np.ndarray) -> np.ndarray:
-    """Normal-incidence reflectance of a conductor of complex index n + ik."""
-    return ((ior - 1.0) ** 2 + extinction**2) / ((ior + 1.0) ** 2 + extinction**2)
+def conductor_reflectance(cos: float, ior: np.ndarray, extinction: np.ndarray) -> np.ndarray:
+    """Unpolarised Fresnel reflectance of a conductor of complex index n + ik seen from air."""
+    n2, k2 = ior**2, extinction**2
+    cos2 = cos * cos
+    sin2 = 1.0 - cos2
+    t = n2 - k2 - sin2
+    a2b2 = np.sqrt(t * t + 4.0 * n2 * k2)
+    a = np.sqrt(np.maximum(0.5 * (a2b2 + t), 0.0))
+    r_s = (a2b2 + cos2 - 2.0 * a * cos) / np.maximum(a2b2 + cos2 + 2.0 * a * cos, 1e-300)
+    r_p = r_s * (cos2 * a2b2 + sin2 * sin2 - 2.0 * a * cos * sin2) / np.maximum(
+        cos2 * a2b2 + sin2 * sin2 + 2.0 * a * cos * sin2, 1e-300)
+    return 0.5 * (r_s + r_p)
+
+
+F82_COS = 1.0 / 7.0  # about 82 degrees, where the F82-tint curve takes its tint
+
+
+def conductor_as_f82(ior: np.ndarray, extinction: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(F0, edge tint) of the F82-tint curve through the conductor's exact reflectance at
+    normal incidence and at cos = 1/7: an approximation of Cycles' Physical Conductor."""
+    f0 = np.clip(conductor_reflectance(1.0, ior, extinction), 0.0, 1.0)
+    schlick82 = f0 + (1.0 - f0) * (1.0 - F82_COS) ** 5
+    tint = conductor_reflectance(F82_COS, ior, extinction) / schlick82
+    return f0, np.clip(tint, 0.0, 1.0)
 
 
 def shader_metallic(read: Inputs) -> list[Term]:
+    """Cycles' Metallic BSDF: the F82-tint Fresnel of Base Color and Edge Tint, or (Physical
+    Conductor) the exact Fresnel of a complex index, here fitted by an F82-tint curve."""
     node = read.node
     warn_ignored_distribution(read, node)
     if read("Anisotropy") != 0.0:
         read.warn("Anisotropy is ignored")
     if node.fresnel_type == "PHYSICAL_CONDUCTOR":
-        f0 = conductor_f0(np.maximum(read("IOR"), 0.0), np.maximum(read("Extinction"), 0.0))
+        f0, tint = conductor_as_f82(np.maximum(read("IOR"), 0.0), np.maximum(read("Extinction"), 0.0))
     else:
-        f0 = np.clip(read("Base Color"), 0.0, 1.0)  # Edge Tint is approximated by Schlick's curve
+        f0 = np.clip(read("Base Color"), 0.0, 1.0)
+        tint = np.clip(read("Edge Tint"), 0.0, 1.0)
     roughness = saturate(read("Roughness"))
-    return [Term(reflection_kind(roughness), np.ones(3), color=rgb(f0), roughness=roughness)]
+    return [Term(reflection_kind(roughness), np.ones(3), color=rgb(f0), roughness=roughness, fresnel="f82",
+                 tint=rgb(tint))]
 
 
 def shader_glass(read: Inputs) -> list[Term]:
@@ -622,7 +651,8 @@ def principled_ignored_inputs(read: Inputs) -> list[str]:
         ("Anisotropic", read("Anisotropic") > 0.0),
         ("Thin Film Thickness", read("Thin Film Thickness") > 0.0),
         ("Diffuse Roughness", read("Diffuse Roughness") > 0.0),
-        ("Specular Tint", not np.allclose(read("Specular Tint"), 1.0)),
+        ("Specular Tint (of the dielectric layer; metals use it)",
+         not np.allclose(read("Specular Tint"), 1.0) and read("Metallic") < 1.0),
     ]
     return [name for name, ignored in checks if ignored]
 
@@ -638,8 +668,9 @@ def adjusted_specular_ior(ior: float, level: float) -> float:
 
 
 def shader_principled(read: Inputs) -> list[Term]:
-    """Cycles' Principled BSDF (svm/closure.h) as Haze lobes: alpha, metal, glass, then the
-    dielectric specular layer over diffuse (Haze's "plastic")."""
+    """Cycles' Principled BSDF (svm/closure.h) as Haze lobes: alpha, metal (F82-tint Fresnel of
+    Base Color and Specular Tint), glass, then the dielectric specular layer over diffuse
+    (Haze's "plastic")."""
     ignored = principled_ignored_inputs(read)
     if ignored:
         read.warn("ignored inputs: " + ", ".join(ignored))
@@ -657,7 +688,8 @@ def shader_principled(read: Inputs) -> list[Term]:
         terms.append(Term("emission", np.broadcast_to(emission * weight, (3,)).astype(np.float64)))
     if metallic > 0.0:
         terms.append(Term(reflection_kind(roughness), np.full(3, weight * metallic),
-                          color=rgb(np.minimum(base, 1.0)), roughness=roughness))
+                          color=rgb(np.minimum(base, 1.0)), roughness=roughness, fresnel="f82",
+                          tint=rgb(np.clip(read("Specular Tint"), 0.0, 1.0))))
         weight *= 1.0 - metallic
     if transmission > 0.0 and weight > 0.0:
         if roughness > 0.0:
