@@ -472,6 +472,7 @@ def test_principled_bsdf_follows_cycles_layering(exported):
     metal = lobes["rough_conductor"]
     assert metal.weight == pytest.approx((alpha * metallic,) * 3)
     assert metal.color == pytest.approx((0.8, 0.2, 0.1)) and metal.roughness == pytest.approx(0.4)
+    assert metal.fresnel == "f82" and metal.tint == pytest.approx((1.0, 1.0, 1.0))  # F0 = base, F82 tint
     glass = lobes["dielectric"]
     assert glass.weight == pytest.approx((alpha * (1 - metallic) * transmission,) * 3)
     assert glass.color == pytest.approx(tuple(np.sqrt([0.8, 0.2, 0.1])), rel=1e-6)
@@ -556,6 +557,7 @@ def test_world_background_volume_and_unsupported_texture(exported):
 def test_groups_muted_nodes_and_unsupported_closures(exported):
     lobes = lobes_by_kind(material(exported["main_scene"], "Grouped"))
     assert lobes["rough_conductor"].roughness == pytest.approx(0.4)  # 0.8 halved; the muted POWER passes it
+    assert lobes["rough_conductor"].fresnel == "constant"  # Glossy BSDF: the colour at every angle
     assert lobes["diffuse"].color == pytest.approx((0.2, 0.7, 0.1))  # Translucent's fallback
     assert "Material 'Grouped', node 'Leaf': Translucent BSDF shaders are not supported by Haze; " \
            "rendered as a Diffuse BSDF of its Color" in exported["main"]["warnings"]

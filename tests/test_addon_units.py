@@ -13,7 +13,16 @@ from addon.export.lights import area_outline, fan_triangles
 from addon.export.materials import choose_emission, close_open_sides, convert_material
 from addon.export.mesh import LocalGeometry, edge_problems, transform
 from addon.export.messages import Messages
-from addon.export.nodes import Term, adjusted_specular_ior, merge_sides, safe_power, scale_terms
+from addon.export.nodes import (
+    F82_COS,
+    Term,
+    adjusted_specular_ior,
+    conductor_as_f82,
+    conductor_reflectance,
+    merge_sides,
+    safe_power,
+    scale_terms,
+)
 from renderer.scene import Lobe
 
 CUBE = np.array([[0, 1, 3], [0, 3, 2], [4, 6, 7], [4, 7, 5], [0, 4, 5], [0, 5, 1],
@@ -59,6 +68,20 @@ def test_specular_ior_level_matches_cycles():
     f0 = 2.0 * 0.8 * 0.04  # level 0.8 scales F0 = 0.04 by 1.6
     assert adjusted_specular_ior(1.5, 0.8) == pytest.approx((1 + math.sqrt(f0)) / (1 - math.sqrt(f0)))
     assert adjusted_specular_ior(1.5, 0.0) == 1.0
+
+
+def test_physical_conductor_as_f82_curve():
+    """Metallic BSDF, Physical Conductor: the F82-tint curve passes through the exact conductor
+    Fresnel at normal incidence and at cos = 1/7; a dielectric (k = 0) gives Fresnel's F0."""
+    assert conductor_reflectance(1.0, np.array([1.5]), np.array([0.0]))[0] == pytest.approx(0.04)
+    assert conductor_reflectance(0.0, np.array([0.2]), np.array([3.0]))[0] == pytest.approx(1.0)
+    n, k = np.array([0.27, 0.68, 1.32]), np.array([3.61, 2.63, 2.27])  # gold-like
+    f0, tint = conductor_as_f82(n, k)
+    np.testing.assert_allclose(f0, conductor_reflectance(1.0, n, k))
+    c = F82_COS
+    f82 = (f0 + (1 - f0) * (1 - c) ** 5) * tint
+    np.testing.assert_allclose(f82, conductor_reflectance(c, n, k), rtol=1e-12)
+    assert np.all((tint > 0.0) & (tint <= 1.0))
 
 
 def test_safe_power_follows_cycles():
