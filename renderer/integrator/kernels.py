@@ -44,10 +44,13 @@ from ..lights.sample import (
     triangle_light_pdf,
 )
 from .media_api import (
-    nee_vertex,
+    channel_probabilities,
+    nee_vertex_on,
     phase_eval,
     sample_distance,
     sample_phase,
+    sample_segment,
+    segment,
     stack_has_grid,
     stack_is_empty,
     stack_push,
@@ -226,8 +229,12 @@ def shade_media(n, ps, prim, lt, md, cfg, L, sh):
         depth = ps.depth[i]
         t_hit = np.float64(ps.tmax[i]) + gap if prim[i] >= 0 else RAY_FAR
         did_nee = False
+        homogeneous = not stack_has_grid(md, stack)
+        if homogeneous:
+            # Shared by the next-event vertex and the path's own free flight.
+            seg = segment(md, stack, t_hit)
         wants_nee = sampling != SAMPLING_BSDF and depth <= max_bounces and cdf.shape[0] > 1
-        if wants_nee and not stack_has_grid(md, stack):
+        if wants_nee and homogeneous:
             # Decoupled next-event vertex (as Cycles): a point on the segment chosen by
             # equiangular/free-flight MIS toward a light point, independent of where the
             # path itself goes on.
@@ -235,12 +242,17 @@ def shade_media(n, ps, prim, lt, md, cfg, L, sh):
             lp = light_point(lt, light, uniform(key, dim + 1), uniform(key, dim + 2))
             dim += 3
             use_eq = cfg[CFG_EQUIANGULAR] != 0 and light_has_point(lt, light)
-            tn, wn, dim = nee_vertex(md, stack, o, d, t_hit, lp, beta, key, dim, use_eq, uniform_channel)
+            tn, wn, dim = nee_vertex_on(seg, o, d, t_hit, lp, beta, key, dim, use_eq, uniform_channel)
             if max3(wn) > 0.0:
                 xn = madd(o, d, tn)
                 s, dim = _medium_nee(ps, i, md, lt, cfg, xn, d, beta, key, dim, sh, s, light, lp, wn)
             did_nee = True
-        t, scattered, w, le, dim = sample_distance(md, stack, o, d, t_hit, beta, key, dim, uniform_channel)
+        if homogeneous:
+            p = channel_probabilities(beta, uniform_channel)
+            t, scattered, w, le, dim = sample_segment(md, stack, seg, t_hit, p, key, dim)
+        else:
+            t, scattered, w, le, dim = sample_distance(md, stack, o, d, t_hit, beta, key, dim,
+                                                       uniform_channel)
         if max3(le) > 0.0:
             L[pid, 0] += beta[0] * le[0]
             L[pid, 1] += beta[1] * le[1]

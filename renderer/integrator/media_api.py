@@ -4,12 +4,15 @@ A scene without media never reaches these: the shading kernel tests cfg[CFG_HAS_
 before touching the path's medium stack.
 """
 
-from ..media.medium import sample_distance, transmittance
-from ..media.nee import nee_vertex
+from ..media.homogeneous import segment
+from ..media.medium import sample_distance, sample_segment, transmittance
+from ..media.nee import nee_vertex_on
+from ..media.spectral import channel_probabilities
 from ..media.stack import stack_has_grid, stack_is_empty, stack_push, stack_remove
 from ..media.stack_phase import phase_eval, sample_phase
 
 __all__ = [
-    "nee_vertex", "phase_eval", "sample_distance", "sample_phase", "stack_has_grid", "stack_is_empty",
-    "stack_push", "stack_remove", "transmittance",
+    "channel_probabilities", "nee_vertex_on", "phase_eval", "sample_distance", "sample_phase",
+    "sample_segment", "segment", "stack_has_grid", "stack_is_empty", "stack_push", "stack_remove",
+    "transmittance",
 ]

@@ -56,13 +56,46 @@ def optical_depth(sigma, t):
 
 
 @njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+def _exp_neg(x):
+    # exp(-x) for x >= 0; past 745 the result is 0 anyway, and libm's underflow path (errno)
+    # costs five times a plain exp: infinite segments (rays leaving into world fog) hit it.
+    return math.exp(-x) if x < 745.0 else 0.0
+
+
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def beer(sigma_t, t):
-    """Transmittance exp(-sigma_t t) per channel."""
+    """Transmittance exp(-sigma_t t) per channel (one exp for a grey medium)."""
+    if sigma_t[0] == sigma_t[1] and sigma_t[1] == sigma_t[2]:
+        e = _exp_neg(optical_depth(sigma_t[0], t))
+        return (e, e, e)
     return (
-        math.exp(-optical_depth(sigma_t[0], t)),
-        math.exp(-optical_depth(sigma_t[1], t)),
-        math.exp(-optical_depth(sigma_t[2], t)),
+        _exp_neg(optical_depth(sigma_t[0], t)),
+        _exp_neg(optical_depth(sigma_t[1], t)),
+        _exp_neg(optical_depth(sigma_t[2], t)),
     )
+
+
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+def _one_minus(tr, x):
+    # 1 - exp(-x) from tr = exp(-x): exact enough unless x is small, where the difference
+    # cancels; there expm1 keeps full precision (and 1 - tr would be 0 below x ~ 1e-16).
+    return 1.0 - tr if x > 0.1 else -math.expm1(-x)
+
+
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+def segment(mt, stack, tmax):
+    """Constants of a homogeneous stack over [0, tmax), computed once per path segment and
+    shared by the next-event vertex and free-flight sampling (exp dominated the medium
+    kernel's maths): (sigma_a, sigma_s, sigma_t, T(tmax), 1 - T(tmax)), each per channel."""
+    sa, ss = stack_sigma(mt, stack)
+    st = (sa[0] + ss[0], sa[1] + ss[1], sa[2] + ss[2])
+    tr = beer(st, tmax)
+    miss = (
+        _one_minus(tr[0], optical_depth(st[0], tmax)),
+        _one_minus(tr[1], optical_depth(st[1], tmax)),
+        _one_minus(tr[2], optical_depth(st[2], tmax)),
+    )
+    return sa, ss, st, tr, miss
 
 
 @njit(cache=True, error_model="numpy", _nrt=False, inline="always")
@@ -104,6 +137,22 @@ def sample_truncated_exponential(sigma, tmax, u):
 
 
 @njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+def sample_truncated(sigma, tmax, miss, u):
+    """sample_truncated_exponential given miss = 1 - exp(-sigma tmax) (see segment)."""
+    if sigma > 0.0 and miss > 0.0:
+        return min(-math.log1p(-u * miss) / sigma, tmax)
+    return u * tmax
+
+
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+def truncated_pdf(sigma, tmax, miss, tr_t):
+    """truncated_exponential_pdf given miss = 1 - exp(-sigma tmax) and tr_t = exp(-sigma t)."""
+    if sigma > 0.0 and miss > 0.0:
+        return sigma * tr_t / miss
+    return 1.0 / tmax
+
+
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def truncated_exponential_pdf(sigma, tmax, t):
     x = optical_depth(sigma, tmax)
     if x > 0.0:
@@ -124,12 +173,18 @@ def free_flight(sigma_a, sigma_s, tmax, p, u_channel, u_distance):
     (sigma_t,c t <= 16.7), so the weights are finite for any mix of coefficients.
     """
     st = (sigma_a[0] + sigma_s[0], sigma_a[1] + sigma_s[1], sigma_a[2] + sigma_s[2])
+    return free_flight_segment(sigma_s, st, beer(st, tmax), tmax, p, u_channel, u_distance)
+
+
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+def free_flight_segment(sigma_s, st, tr_end, tmax, p, u_channel, u_distance):
+    """free_flight given sigma_t and tr_end = T(tmax) (see segment)."""
     c = pick_channel(p, u_channel)
     t = sample_exponential(st[c], u_distance)
     if t < tmax:
         tr = beer(st, t)
         pdf = p[0] * st[0] * tr[0] + p[1] * st[1] * tr[1] + p[2] * st[2] * tr[2]
         return t, True, (tr[0] * sigma_s[0] / pdf, tr[1] * sigma_s[1] / pdf, tr[2] * sigma_s[2] / pdf)
-    tr = beer(st, tmax)
+    tr = tr_end
     prob = p[0] * tr[0] + p[1] * tr[1] + p[2] * tr[2]
     return tmax, False, (tr[0] / prob, tr[1] / prob, tr[2] / prob)

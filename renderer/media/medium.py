@@ -13,7 +13,8 @@ from renderer.kernels.rng import uniform
 from renderer.media.homogeneous import (
     beer,
     emission_integral,
-    free_flight,
+    free_flight_segment,
+    segment,
     stack_constant_emission,
     stack_sigma,
 )
@@ -42,16 +43,23 @@ def sample_distance(mt, stack, o, d, tmax, throughput, key, dim, uniform_channel
     p = channel_probabilities(throughput, uniform_channel)
     if stack_has_grid(mt, stack):
         return track_free_flight(mt, stack, o, d, tmax, p, key, dim)
-    sa, ss = stack_sigma(mt, stack)
+    return sample_segment(mt, stack, segment(mt, stack, tmax), tmax, p, key, dim)
+
+
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+def sample_segment(mt, stack, seg, tmax, p, key, dim):
+    """sample_distance for a HOMOGENEOUS stack given its segment constants
+    (homogeneous.segment) and channel probabilities p."""
+    sa, ss, st, tr_end, _ = seg
     if ss[0] <= 0.0 and ss[1] <= 0.0 and ss[2] <= 0.0:
         # Nothing scatters: the segment's transmittance is the whole answer, exactly (a
         # sampled collision could only absorb the path, adding noise and no information).
-        t, scattered, weight = tmax, False, beer((sa[0], sa[1], sa[2]), tmax)
+        t, scattered, weight = tmax, False, tr_end
     else:
-        t, scattered, weight = free_flight(sa, ss, tmax, p, uniform(key, dim), uniform(key, dim + 1))
+        t, scattered, weight = free_flight_segment(ss, st, tr_end, tmax, p, uniform(key, dim),
+                                                   uniform(key, dim + 1))
     le = (0.0, 0.0, 0.0)
     if stack_has_emission(mt, stack):
-        st = (sa[0] + ss[0], sa[1] + ss[1], sa[2] + ss[2])
         le = emission_integral(stack_constant_emission(mt, stack), st, tmax)
     return t, scattered, weight, le, dim + 2
 

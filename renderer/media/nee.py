@@ -18,13 +18,8 @@ transmittance. The vertex is independent of where the path continues.
 from numba import njit
 
 from renderer.kernels.rng import uniform
-from renderer.media.equiangular import equiangular_pdf, equiangular_sample
-from renderer.media.homogeneous import (
-    beer,
-    sample_truncated_exponential,
-    stack_sigma,
-    truncated_exponential_pdf,
-)
+from renderer.media.equiangular import equiangular_frame, frame_pdf, frame_sample
+from renderer.media.homogeneous import beer, sample_truncated, segment, truncated_pdf
 from renderer.media.spectral import channel_probabilities, pick_channel
 
 
@@ -33,8 +28,15 @@ def nee_vertex(mt, stack, o, d, tmax, light_p, throughput, key, dim, use_equiang
     """(t, weight3, dim) for a HOMOGENEOUS stack: a point on [0, tmax) and its weight
     T(t) sigma_s / pdf(t). Consumes 3 dimensions. Plain truncated free flight when
     use_equiangular is False (light_p is then unused)."""
-    sa, ss = stack_sigma(mt, stack)
-    st = (sa[0] + ss[0], sa[1] + ss[1], sa[2] + ss[2])
+    return nee_vertex_on(segment(mt, stack, tmax), o, d, tmax, light_p, throughput, key, dim, use_equiangular,
+                         uniform_channel)
+
+
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+def nee_vertex_on(seg, o, d, tmax, light_p, throughput, key, dim, use_equiangular, uniform_channel):
+    """nee_vertex given the segment's constants (homogeneous.segment), so that the path's
+    own free-flight sampling on the same segment can reuse them."""
+    _, ss, st, _, miss = seg
     p = channel_probabilities(throughput, uniform_channel)
     u_technique = uniform(key, dim)
     u_channel = uniform(key, dim + 1)
@@ -42,16 +44,22 @@ def nee_vertex(mt, stack, o, d, tmax, light_p, throughput, key, dim, use_equiang
     dim += 3
     if not (ss[0] > 0.0 or ss[1] > 0.0 or ss[2] > 0.0) or not tmax > 0.0:
         return 0.0, (0.0, 0.0, 0.0), dim
-    if use_equiangular and u_technique < 0.5:
-        t, _ = equiangular_sample(o, d, light_p, tmax, u_t)
+    if use_equiangular:
+        frame = equiangular_frame(o, d, light_p, tmax)
+        if u_technique < 0.5:
+            t = frame_sample(frame, tmax, u_t)
+        else:
+            c = pick_channel(p, u_channel)
+            t = sample_truncated(st[c], tmax, miss[c], u_t)
     else:
-        t = sample_truncated_exponential(st[pick_channel(p, u_channel)], tmax, u_t)
+        c = pick_channel(p, u_channel)
+        t = sample_truncated(st[c], tmax, miss[c], u_t)
+    tr = beer(st, t)
     pdf = (
-        p[0] * truncated_exponential_pdf(st[0], tmax, t)
-        + p[1] * truncated_exponential_pdf(st[1], tmax, t)
-        + p[2] * truncated_exponential_pdf(st[2], tmax, t)
+        p[0] * truncated_pdf(st[0], tmax, miss[0], tr[0])
+        + p[1] * truncated_pdf(st[1], tmax, miss[1], tr[1])
+        + p[2] * truncated_pdf(st[2], tmax, miss[2], tr[2])
     )
     if use_equiangular:
-        pdf = 0.5 * pdf + 0.5 * equiangular_pdf(o, d, light_p, tmax, t)
-    tr = beer(st, t)
+        pdf = 0.5 * pdf + 0.5 * frame_pdf(frame, tmax, t)
     return t, (tr[0] * ss[0] / pdf, tr[1] * ss[1] / pdf, tr[2] * ss[2] / pdf), dim
