@@ -5,14 +5,18 @@ sampling is split in two so that a medium can place its next-event vertex toward
 chosen point (equiangular sampling) before the connection is made:
   pick_light     -> a row, by power
   light_point    -> a point on that light (area lights, point and spot lights)
-  connect_light  -> direction, distance, radiance and solid-angle pdf from a shading point
+  connect_light  -> direction, distance, radiance and solid-angle pdf from a shading point;
+                    triangles are sampled by the solid angle they subtend there (see
+                    spherical_triangle.py), the light point serving only the medium's
+                    equiangular vertex (and the area fallback for tiny solid angles)
 """
 
 import math
 
 from numba import njit
 
-from ..kernels.vecmath import INV_4PI, cross, dot, length, normalize, onb, scale, sub, to_world
+from ..kernels.vecmath import INV_4PI, add, cross, dot, length, normalize, onb, scale, sub, to_world
+from .spherical_triangle import sample_direction, solid_angle, use_solid_angle
 from .table import POINT, SPOT, SUN, TRIANGLE
 
 
@@ -74,6 +78,30 @@ def spot_attenuation(axis, cos_outer, blend_width, wi_from_light):
 
 
 @njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+def _triangle(lt, light):
+    pos, vec_a, vec_b = lt[1], lt[2], lt[3]
+    p0 = (float(pos[light, 0]), float(pos[light, 1]), float(pos[light, 2]))
+    e1 = (float(vec_a[light, 0]), float(vec_a[light, 1]), float(vec_a[light, 2]))
+    e2 = (float(vec_b[light, 0]), float(vec_b[light, 1]), float(vec_b[light, 2]))
+    return p0, add(p0, e1), add(p0, e2)
+
+
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+def _connect_by_solid_angle(lt, light, x, p0, p1, p2, omega, c, u1, u2):
+    """connect_light for a triangle sampled uniformly in solid angle (pdf 1 / omega)."""
+    wi = sample_direction(x, p0, p1, p2, omega, u1, u2)
+    n = normalize(cross(sub(p1, p0), sub(p2, p0)))
+    cos_l = -dot(wi, n)
+    dist = dot(sub(x, p0), n) / cos_l if cos_l != 0.0 else 0.0
+    if not (dist > 0.0 and math.isfinite(dist)):
+        return wi, 0.0, (0.0, 0.0, 0.0), 0.0, False
+    if cos_l < 0.0:
+        color_b = lt[5]
+        c = (float(color_b[light, 0]), float(color_b[light, 1]), float(color_b[light, 2]))
+    return wi, dist, c, 1.0 / omega, False
+
+
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def connect_light(lt, light, lp, x, u1, u2):
     """Connect shading point x to light `light` (at point lp for lights that have one).
 
@@ -84,6 +112,11 @@ def connect_light(lt, light, lp, x, u1, u2):
     kind, vec_a, vec_b, color, color_b, param = lt[0], lt[2], lt[3], lt[4], lt[5], lt[6]
     k = kind[light]
     c = (float(color[light, 0]), float(color[light, 1]), float(color[light, 2]))
+    if k == TRIANGLE:
+        p0, p1, p2 = _triangle(lt, light)
+        omega = solid_angle(x, p0, p1, p2)
+        if use_solid_angle(omega):
+            return _connect_by_solid_angle(lt, light, x, p0, p1, p2, omega, c, u1, u2)
     if k == TRIANGLE or k == POINT or k == SPOT:
         to = sub(lp, x)
         dist = length(to)
@@ -152,6 +185,10 @@ def escaped_radiance(lt, env_light, sun_rows, d):
 def triangle_light_pdf(lt, light, x, p, cos_l):
     """Solid-angle pdf, with selection, of light-sampling point p on triangle light `light`
     from x, where cos_l is the cosine at the light."""
+    p0, p1, p2 = _triangle(lt, light)
+    omega = solid_angle(x, p0, p1, p2)
+    if use_solid_angle(omega):
+        return lt[7][light] / omega
     area = lt[6][light, 0]
     if area <= 0.0 or abs(cos_l) < 1e-8:
         return 0.0
