@@ -44,9 +44,9 @@ MAX_REFERENCE_NOISE_SHARE = 0.1
 # pixel's term stays below ~1 while its true error is far larger. With the reference's
 # mean in the denominator instead, the same variances give ratios 0.97-1.06 everywhere.
 KNOWN_UNDERESTIMATES = {
-    ("fog_g0", 16): "true/estimated relMSE 3.5 (fireflies: the estimate's denominator is the noisy mean)",
-    ("fog_g0.9", 16): "true/estimated relMSE 8.0 (fireflies: the estimate's denominator is the noisy mean)",
-    ("fog_g0.9", 64): "true/estimated relMSE 2.9 (fireflies: the estimate's denominator is the noisy mean)",
+    # (fog_g0, 16 spp) was 3.5 before triangle lights were sampled by solid angle; now within 2x.
+    ("fog_g0.9", 16): "true/estimated relMSE 7.9 (fireflies: the estimate's denominator is the noisy mean)",
+    ("fog_g0.9", 64): "true/estimated relMSE 2.8 (fireflies: the estimate's denominator is the noisy mean)",
 }
 
 
