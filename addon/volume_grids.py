@@ -5,8 +5,8 @@ Grids are (nz, ny, nx) float32 arrays, x fastest, as in Haze's scene format and 
 voxel (i, j, k) centred at p0 + (i + 0.5) h with h = (p1 - p0) / n: that is Haze's
 convention and, written as an OpenVDB index-to-object transform, Blender's and Cycles' too.
 
-The generators are the paper's (seed/volumetric-path-tracing.txt): the Fig. 3 smoke ball and
-the gaussian-randomised smoke of Fig. 6, same formulas as examples/media_scenes.py.
+The generators (the paper's Fig. 3 smoke ball and Fig. 6 gaussian smoke) live in
+renderer/media/generators.py, shared with examples/media_scenes.py; they are re-exported here.
 """
 
 from __future__ import annotations
@@ -19,40 +19,14 @@ from pathlib import Path
 
 import numpy as np
 
+from renderer.media.generators import gaussian_smoke_density, smoke_ball_density
+
+__all__ = ["GridFileError", "box_index_to_object", "check_grid", "gaussian_smoke_density", "import_openvdb",
+           "read_npy", "read_pbrt", "smoke_ball_density", "write_pbrt", "write_vdb"]
+
 
 class GridFileError(ValueError):
     """A density file that cannot be read; the message says what is wrong with it."""
-
-
-def smoke_ball_density(n: int = 11, radius: float | None = None, falloff: float = 2.0) -> np.ndarray:
-    """The Fig. 3 generator: density falloff^-(dist + 2) at `dist` voxels from the grid centre,
-    within `radius` voxels (default (n - 2) / 2, the paper's 9/2 for 11^3) and 0 on the grid's
-    faces (the caption's two changes to the pseudo-code, which keep the ball's edge soft)."""
-    radius = (n - 2) / 2.0 if radius is None else radius
-    centre = (n - 1) / 2.0
-    z, y, x = np.meshgrid(np.arange(n), np.arange(n), np.arange(n), indexing="ij")
-    dist = np.sqrt((x - centre) ** 2 + (y - centre) ** 2 + (z - centre) ** 2)
-    density = 1.0 / falloff ** (dist + 2.0)
-    interior = np.zeros((n, n, n), bool)
-    interior[1:-1, 1:-1, 1:-1] = True
-    return np.where(interior & (dist <= radius), density, 0.0).astype(np.float32)
-
-
-def gaussian_smoke_density(n: int = 32, seed: int = 6, blobs: int = 24) -> np.ndarray:
-    """Gaussian-randomised smoke: `blobs` gaussian puffs with normally distributed centres and
-    radii from a seeded generator, peak density 1, faded to 0 at the grid's outermost voxels."""
-    rng = np.random.default_rng(seed)
-    axis = (np.arange(n) + 0.5) / n
-    z, y, x = np.meshgrid(axis, axis, axis, indexing="ij")
-    density = np.zeros((n, n, n))
-    for _ in range(blobs):
-        cx, cy, cz = np.clip(rng.normal(0.5, 0.14, 3), 0.2, 0.8)
-        r = abs(rng.normal(0.12, 0.04)) + 0.04
-        w = rng.uniform(0.5, 1.0)
-        density += w * np.exp(-((x - cx) ** 2 + (y - cy) ** 2 + (z - cz) ** 2) / (2 * r * r))
-    fade = np.minimum.reduce([x, 1 - x, y, 1 - y, z, 1 - z]) - 0.5 / n
-    density *= np.clip(fade / 0.1, 0.0, 1.0)
-    return (density / density.max()).astype(np.float32)
 
 
 def box_index_to_object(p0, p1, shape) -> np.ndarray:

@@ -17,6 +17,7 @@ from collections.abc import Callable
 import numpy as np
 
 from examples.scenes import FIG1_SIGMA_A, FIG1_SIGMA_S, box, cornell_box, diffuse, fog, icosphere, merge, quad
+from renderer.media.generators import gaussian_smoke_density, smoke_ball_density
 from renderer.scene import (
     Camera,
     Environment,
@@ -81,24 +82,8 @@ def fog_forward(size: int = 128, spp: int = 64) -> Scene:
 
 
 # ------------------------------------------------------------- Fig. 3 / 5: smoke ball
-
-
-def smoke_ball_density(n: int = 11) -> np.ndarray:
-    """The Fig. 3 generator: density 1 / 2^(dist + 2) at distance `dist` (in voxels) from
-    the grid centre, restricted to radius 9/2 and zero on the grid's faces (the caption's
-    two changes to the pseudo-code, which keep the ball's edge soft).
-
-    Returns (n, n, n) float32 indexed [z, y, x], i.e. the pseudo-code's flat list
-    density[(z * ny + y) * nx + x] reshaped.
-    """
-    radius = (n - 2) / 2.0  # 9/2 for the paper's 11^3 grid
-    centre = (n - 1) / 2.0
-    z, y, x = np.meshgrid(np.arange(n), np.arange(n), np.arange(n), indexing="ij")
-    dist = np.sqrt((x - centre) ** 2 + (y - centre) ** 2 + (z - centre) ** 2)
-    density = 1.0 / 2.0 ** (dist + 2.0)
-    interior = np.zeros((n, n, n), bool)
-    interior[1:-1, 1:-1, 1:-1] = True  # the pseudo-code's loops skip the faces
-    return np.where(interior & (dist <= radius), density, 0.0).astype(np.float32)
+# The Fig. 3 generator (smoke_ball_density) and Fig. 6's gaussian smoke live in
+# renderer/media/generators.py, shared with the Blender add-on.
 
 
 def grid_medium(name: str, density: np.ndarray, center, half, sigma_a, sigma_s, g: float = 0.0,
@@ -129,25 +114,6 @@ def smoke_ball(size: int = 128, spp: int = 64) -> Scene:
 
 
 # ------------------------------------------------------------- Fig. 6: yellow smoke
-
-
-def gaussian_smoke_density(n: int = 32, seed: int = 6, blobs: int = 24) -> np.ndarray:
-    """A gaussian-randomised cloud: `blobs` gaussian puffs with normally distributed
-    centres (around the grid centre) and radii, from a seeded generator, scaled to peak
-    density 1 and faded to 0 at the grid's faces. (n, n, n) float32 indexed [z, y, x]."""
-    rng = np.random.default_rng(seed)
-    axis = (np.arange(n) + 0.5) / n
-    z, y, x = np.meshgrid(axis, axis, axis, indexing="ij")
-    density = np.zeros((n, n, n))
-    for _ in range(blobs):
-        cx, cy, cz = np.clip(rng.normal(0.5, 0.14, 3), 0.2, 0.8)
-        r = abs(rng.normal(0.12, 0.04)) + 0.04
-        w = rng.uniform(0.5, 1.0)
-        density += w * np.exp(-((x - cx) ** 2 + (y - cy) ** 2 + (z - cz) ** 2) / (2 * r * r))
-    # distance to the outermost voxel centres: those are 0, so the cloud has no hard edge
-    fade = np.minimum.reduce([x, 1 - x, y, 1 - y, z, 1 - z]) - 0.5 / n
-    density *= np.clip(fade / 0.1, 0.0, 1.0)
-    return (density / density.max()).astype(np.float32)
 
 
 YELLOW_SMOKE_PEAK = 0.6  # peak density: a translucent cloud about a unit across

@@ -29,7 +29,7 @@ from renderer.media import (
     stack_remove,
     transmittance,
 )
-from renderer.media.blackbody import blackbody_emission, blackbody_rgb
+from renderer.media.blackbody import blackbody_emission, blackbody_emission_voxels, blackbody_rgb
 from renderer.media.compile import I_HAS_EMISSION, I_MAJ_DIMS, I_MAJ_OFFSET, P_G
 from renderer.media.emission import stack_emission
 from renderer.media.grid import grid_lookup
@@ -676,6 +676,45 @@ def test_blackbody_range_and_emission_formula():
         expected = sigma * ((1.0 - b) + b * t**4) * np.array(blackbody_rgb(t))
         np.testing.assert_allclose(blackbody_emission(t, b), expected, rtol=1e-12)
     assert blackbody_emission(3000.0, 0.0) == (0.0, 0.0, 0.0)
+
+
+def test_blackbody_voxels_equal_the_kernel_formula():
+    rng = np.random.default_rng(5)
+    temperature = np.concatenate([[0.0, 1.0, 799.0, 800.0, 12000.0, 5e4], rng.uniform(0.0, 15000.0, 200)])
+    for b in (1.0, 0.5, 2.0, 0.0):
+        voxels = blackbody_emission_voxels(temperature, b)
+        expected = np.array([blackbody_emission(t, b) for t in temperature])
+        np.testing.assert_allclose(voxels, expected, rtol=1e-12, atol=0.0)
+
+
+@pytest.mark.parametrize("intensity", [1.0, 0.5])
+def test_grid_blackbody_interpolates_emission_not_temperature(intensity):
+    """Cycles samples a volume's grids stochastically (one voxel picked with the trilinear
+    weights), so what it renders between voxels is, in expectation, the trilinear mix of the
+    voxels' blackbody emission; blackbody of the mixed temperature would be darker (T^4 is
+    convex) and redder."""
+    temperature = np.zeros((2, 2, 3), np.float32)
+    temperature[..., 0], temperature[..., 1], temperature[..., 2] = 0.0, 3000.0, 1200.0
+    temperature[1, 1, 2] = 6000.0
+    med = Medium("fire", type="grid", density=np.zeros((1, 1, 1), np.float32), temperature=temperature,
+                 blackbody_intensity=intensity)
+    mt = compile_media([med])
+    voxels = blackbody_emission_voxels(temperature.astype(np.float64), intensity)
+    rng = np.random.default_rng(11)
+    points = [(1.0 / 3.0, 0.5, 0.5), (0.5, 0.25, 0.75)] + [tuple(rng.uniform(0.0, 1.0, 3)) for _ in range(20)]
+    for u in points:
+        weights = np.ones((2, 2, 3))
+        for axis, n in zip((2, 1, 0), (3, 2, 2)):  # numpy axis 2 is x
+            f = min(max(u[2 - axis] * n - 0.5, 0.0), n - 1.0)
+            i = min(int(f), n - 2)
+            along = np.zeros(n)
+            along[i], along[i + 1] = 1.0 - (f - i), f - i
+            shape = [1, 1, 1]
+            shape[axis] = n
+            weights = weights * along.reshape(shape)
+        expected = (weights[..., None] * voxels).sum(axis=(0, 1, 2))
+        got = np.array(stack_emission(mt, stack_of(0), u))
+        np.testing.assert_allclose(got, expected, rtol=1e-5, atol=1e-7 * np.abs(expected).max())
 
 
 # ------------------------------------------------------------------------------ robustness

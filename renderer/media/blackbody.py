@@ -19,6 +19,13 @@ Principled Volume adds, where blackbody intensity b > 0 (svm/closure.h):
              = 5.670373e-8 / pi * 1e-6 * ((1 - b) + b T^4) * blackbody_rgb(T)
 
 (Stefan-Boltzmann radiance scaled by Cycles' 1e-6; the blackbody tint is 1).
+
+A grid medium evaluates this per voxel (blackbody_emission_voxels) and interpolates the
+resulting emission, not the temperature: Cycles samples volume grids stochastically (one
+voxel picked with the trilinear weights, util/texture_3d.h), so the emission it renders
+is, in expectation, the trilinear mix of the voxels' emission. Interpolating the
+temperature instead loses light wherever it varies, since T^4 is convex (a hot voxel next
+to an empty one: 0.2 instead of 0.5 of its emission over the half voxel between them).
 """
 
 import math
@@ -87,3 +94,20 @@ def blackbody_emission(temperature, intensity):
         return (0.0, 0.0, 0.0)
     c = blackbody_rgb(t)
     return (scale * c[0], scale * c[1], scale * c[2])
+
+
+def blackbody_emission_voxels(temperature, intensity: float) -> np.ndarray:
+    """blackbody_emission of every voxel of a temperature grid: (..., 3) float64, the same
+    table and interpolation as the kernel's (numpy, for compiling grid media)."""
+    t = np.asarray(temperature, np.float64)
+    out = np.zeros(t.shape + (3,))
+    if intensity <= 0.0:
+        return out
+    t = np.maximum(t, 0.0)
+    scale = STEFAN_BOLTZMANN_OVER_PI * ((1.0 - intensity) + intensity * (t * t) * (t * t))
+    clamped = np.clip(t, T_MIN, T_MAX)
+    x = (1.0 / clamped - 1.0 / T_MIN) / (1.0 / T_MAX - 1.0 / T_MIN) * (TABLE_SIZE - 1)
+    i = np.minimum(x.astype(np.int64), TABLE_SIZE - 2)
+    f = (x - i)[..., None]
+    colour = BLACKBODY_TABLE[i] + (BLACKBODY_TABLE[i + 1] - BLACKBODY_TABLE[i]) * f
+    return np.where((scale > 0.0)[..., None], scale[..., None] * colour, 0.0)

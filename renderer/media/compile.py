@@ -11,7 +11,7 @@ is its index in the list.
         P_SIGMA_S + c      scattering per world unit, already times `scale`
         P_G                Henyey-Greenstein asymmetry
         P_EMISSION + c     emission per unit length (see renderer.media.emission)
-        P_BLACKBODY        blackbody intensity (used only with a temperature grid)
+        P_BLACKBODY        blackbody intensity (already applied in the GRID_BLACKBODY grid)
         P_EMISSION_RATE    tentative-collision rate (per world unit) guaranteed in emitting
                            cells of a grid, so that emission where the density is ~0 is
                            still estimated (see tracking.py)
@@ -20,13 +20,17 @@ is its index in the list.
     index     (M, I_SIZE) int64    per-medium integers, columns:
         I_KIND             MEDIUM_HOMOGENEOUS (0) or MEDIUM_GRID (1)
         I_HAS_EMISSION     1 if the medium can emit anywhere (else emission costs nothing)
-        I_GRID_OFFSET + w  start of grid w (GRID_DENSITY, GRID_FLAME, GRID_TEMPERATURE) in
+        I_GRID_OFFSET + w  start of grid w (GRID_DENSITY, GRID_FLAME, GRID_BLACKBODY) in
                            grid_data, -1 when absent
         I_GRID_DIMS + 3 w + a   size of grid w along axis a (x, y, z); voxel (i, j, k) is
-                           grid_data[offset + (k * ny + j) * nx + i]
+                           grid_data[offset + (k * ny + j) * nx + i]; GRID_BLACKBODY holds
+                           three values per voxel, its channel c at 3 (that index) + c
         I_MAJ_OFFSET       first cell of the medium's majorant grid in maj_data (-1 if none)
         I_MAJ_DIMS + a     majorant cells along unit-cube axis a
-    grid_data (N,)        float32  every grid, x fastest
+    grid_data (N,)        float32  every grid, x fastest. The temperature grid is stored as
+                                   GRID_BLACKBODY, the RGB blackbody emission of every voxel
+                                   (intensity applied), which the kernels interpolate: Cycles'
+                                   semantics (see renderer.media.blackbody)
     maj_data  (K, 2)      float32  per majorant cell (x fastest): [max density that trilinear
                                    interpolation can reach inside the cell, 1.0 if the cell
                                    can emit else 0.0]
@@ -49,8 +53,8 @@ MEDIUM_GRID = 1
 
 GRID_DENSITY = 0
 GRID_FLAME = 1
-GRID_TEMPERATURE = 2
-GRID_NAMES = ("density", "flame", "temperature")  # in the order of the indices above
+GRID_BLACKBODY = 2  # from the medium's temperature grid: per-voxel blackbody emission, RGB
+GRID_NAMES = ("density", "flame", "temperature")  # the Medium fields behind the indices above
 
 # Majorant cells aim at MAJ_VOXELS voxels per axis, capped at MAJ_MAX_CELLS per axis: small
 # cells bound sparse data tightly, and a 64^3 cap keeps the DDA walk short.
@@ -131,21 +135,28 @@ def compile_media(media: list[Medium], use_majorant_grid: bool = True) -> MediaT
             continue
 
         to_unit[i], axis_lengths = _world_to_unit(med, path)
+        blackbody_grid = None
         for which, name in enumerate(GRID_NAMES):
             arr = getattr(med, name)
             if arr is None:
                 continue
+            if which == GRID_BLACKBODY:
+                if not emits_blackbody:
+                    continue
+                arr = _blackbody_grid(arr, med.blackbody_intensity)
             arr = np.ascontiguousarray(arr, dtype=np.float32)
             grid_offset[i, which] = grid_size
             grid_dims[i, which] = (arr.shape[2], arr.shape[1], arr.shape[0])
             grids.append(arr.ravel())
+            if which == GRID_BLACKBODY:
+                blackbody_grid = arr
             grid_size += arr.size
 
         cells = _majorant_cells(med.density.shape, use_majorant_grid)
         maj = np.zeros((cells[2], cells[1], cells[0], 2), np.float32)
         maj[..., 0] = _cell_max(np.ascontiguousarray(med.density, np.float32), cells)
         if has_emission[i]:
-            maj[..., 1] = _emitting_cells(med, cells, emits_constant, emits_blackbody)
+            maj[..., 1] = _emitting_cells(med, cells, emits_constant, blackbody_grid)
         maj_offset[i] = maj_size
         maj_dims[i] = cells
         majs.append(maj.reshape(-1, 2))
@@ -286,16 +297,23 @@ def _cell_max(grid: np.ndarray, cells: tuple[int, int, int]) -> np.ndarray:
     return out
 
 
-def _emitting_cells(med: Medium, cells: tuple[int, int, int], constant: bool, blackbody: bool) -> np.ndarray:
-    """1.0 where the emission term can be non-zero inside the cell (within the unit box)."""
+def _blackbody_grid(temperature: np.ndarray, intensity: float) -> np.ndarray:
+    """(nz, ny, nx, 3) float32 blackbody emission of every voxel (see GRID_BLACKBODY)."""
+    from renderer.media.blackbody import blackbody_emission_voxels
+
+    return blackbody_emission_voxels(np.asarray(temperature, np.float32), float(intensity)).astype(np.float32)
+
+
+def _emitting_cells(med: Medium, cells: tuple[int, int, int], constant: bool,
+                    blackbody: np.ndarray | None) -> np.ndarray:
+    """1.0 where the emission term can be non-zero inside the cell (within the unit box);
+    `blackbody` is the GRID_BLACKBODY array, if the medium has one."""
     if constant and med.flame is None:
         return np.ones((cells[2], cells[1], cells[0]), np.float32)
     emits = np.zeros((cells[2], cells[1], cells[0]), np.float32)
     if constant:
         emits = np.maximum(emits, _cell_max(np.asarray(med.flame, np.float32), cells) > 0.0)
-    if blackbody:
-        if med.blackbody_intensity < 1.0:
-            # Cycles' intensity mix(1, T^4, b) is positive even at T = 0 when b < 1.
-            return np.ones_like(emits)
-        emits = np.maximum(emits, _cell_max(np.asarray(med.temperature, np.float32), cells) > 0.0)
+    if blackbody is not None:
+        # Voxels of any temperature emit when b < 1: Cycles' mix(1, T^4, b) is then positive at T = 0.
+        emits = np.maximum(emits, _cell_max(np.abs(blackbody).max(axis=-1), cells) > 0.0)
     return emits.astype(np.float32)

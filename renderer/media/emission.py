@@ -6,18 +6,19 @@ length). As in Cycles' Principled Volume, emission is NOT multiplied by density:
     homogeneous:  E = emission                          (wherever the stack holds it)
     grid:         E = emission * flame(u)               (flame grid given)
                     = emission                          (no flame grid)
-                    + blackbody_emission(temperature(u), blackbody_intensity)
-                                                        (temperature grid given)
-    inside the grid's unit box, and 0 outside it (u = grid unit-cube coordinates).
+                    + blackbody(u)                      (temperature grid given)
+    inside the grid's unit box, and 0 outside it (u = grid unit-cube coordinates), where
+    blackbody(u) is the trilinear mix of blackbody_emission(temperature, intensity) of the
+    voxels around u: emission interpolated, not temperature, as Cycles renders it (see
+    renderer.media.blackbody).
 """
 
 from numba import njit
 
-from renderer.media.blackbody import blackbody_emission
-from renderer.media.compile import GRID_FLAME, GRID_TEMPERATURE
-from renderer.media.grid import grid_lookup, to_unit_point
+from renderer.media.compile import GRID_BLACKBODY, GRID_FLAME
+from renderer.media.grid import grid_lookup, grid_lookup3, to_unit_point
 from renderer.media.stack import EMPTY, MAX_STACK
-from renderer.media.table import blackbody_intensity, emission, emits, grid_offset, is_grid
+from renderer.media.table import emission, emits, grid_offset, is_grid
 
 
 @njit(cache=True, error_model="numpy", _nrt=False, inline="always")
@@ -34,8 +35,8 @@ def medium_emission(mt, m, p):
     if grid_offset(mt, m, GRID_FLAME) >= 0:
         f = grid_lookup(mt, m, GRID_FLAME, u)
         e = (e[0] * f, e[1] * f, e[2] * f)
-    if grid_offset(mt, m, GRID_TEMPERATURE) >= 0:
-        b = blackbody_emission(grid_lookup(mt, m, GRID_TEMPERATURE, u), blackbody_intensity(mt, m))
+    if grid_offset(mt, m, GRID_BLACKBODY) >= 0:
+        b = grid_lookup3(mt, m, GRID_BLACKBODY, u)
         e = (e[0] + b[0], e[1] + b[1], e[2] + b[2])
     return e
 

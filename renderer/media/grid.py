@@ -1,4 +1,4 @@
-"""Grid media: density (and flame, temperature) looked up in the grid's unit cube.
+"""Grid media: density (and flame, blackbody emission) looked up in the grid's unit cube.
 
 World -> unit cube is the affine D = (to_world * T(p0) * S(p1 - p0))^-1 stored as a 3x4
 matrix. Voxel (i, j, k) of an (nx, ny, nz) grid sits at ((i + 0.5)/nx, (j + 0.5)/ny,
@@ -72,6 +72,42 @@ def grid_lookup(mt, m, which, u):
     c0 = c00 * (1.0 - fy) + c10 * fy
     c1 = c01 * (1.0 - fy) + c11 * fy
     return c0 * (1.0 - fz) + c1 * fz
+
+
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+def _trilinear(data, b, di, dj, dk, fx, fy, fz):
+    """Trilinear mix of the 8 values at b, b + di, b + dj, ... with upper weights fx, fy, fz."""
+    c00 = data[b] * (1.0 - fx) + data[b + di] * fx
+    c10 = data[b + dj] * (1.0 - fx) + data[b + dj + di] * fx
+    c01 = data[b + dk] * (1.0 - fx) + data[b + dk + di] * fx
+    c11 = data[b + dk + dj] * (1.0 - fx) + data[b + dk + dj + di] * fx
+    c0 = c00 * (1.0 - fy) + c10 * fy
+    c1 = c01 * (1.0 - fy) + c11 * fy
+    return c0 * (1.0 - fz) + c1 * fz
+
+
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+def grid_lookup3(mt, m, which, u):
+    """Trilinear RGB value of three-channel grid `which` (channels interleaved, see
+    compile.GRID_BLACKBODY) of medium m at unit-cube point u ((0, 0, 0) outside)."""
+    if not (0.0 <= u[0] <= 1.0 and 0.0 <= u[1] <= 1.0 and 0.0 <= u[2] <= 1.0):
+        return (0.0, 0.0, 0.0)
+    nx = grid_dim(mt, m, which, 0)
+    ny = grid_dim(mt, m, which, 1)
+    nz = grid_dim(mt, m, which, 2)
+    i, fx = _axis(u[0], nx)
+    j, fy = _axis(u[1], ny)
+    k, fz = _axis(u[2], nz)
+    di = 3 if i + 1 < nx else 0
+    dj = 3 * nx if j + 1 < ny else 0
+    dk = 3 * nx * ny if k + 1 < nz else 0
+    data = mt.grid_data
+    b = grid_offset(mt, m, which) + 3 * ((k * ny + j) * nx + i)
+    return (
+        _trilinear(data, b, di, dj, dk, fx, fy, fz),
+        _trilinear(data, b + 1, di, dj, dk, fx, fy, fz),
+        _trilinear(data, b + 2, di, dj, dk, fx, fy, fz),
+    )
 
 
 @njit(cache=True, error_model="numpy", _nrt=False, inline="always")
