@@ -34,13 +34,19 @@ def _unit(v):
 
 
 @njit(cache=True, error_model="numpy", _nrt=False, inline="always")
-def solid_angle(x, p0, p1, p2):
-    """Solid angle (sr) subtended at x by the triangle p0 p1 p2 (0 when x is on its plane)."""
+def spherical_triangle(x, p0, p1, p2):
+    """(omega, a, b, c): the solid angle (sr) subtended at x by the triangle p0 p1 p2 (0 when
+    x is in its plane, outside it) and the unit vectors from x to its vertices."""
     a = _unit(sub(p0, x))
     b = _unit(sub(p1, x))
     c = _unit(sub(p2, x))
     triple = abs(dot(a, cross(b, c)))
-    return 2.0 * math.atan2(triple, 1.0 + dot(a, b) + dot(b, c) + dot(c, a))
+    return 2.0 * math.atan2(triple, 1.0 + dot(a, b) + dot(b, c) + dot(c, a)), a, b, c
+
+
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+def solid_angle(x, p0, p1, p2):
+    return spherical_triangle(x, p0, p1, p2)[0]
 
 
 @njit(cache=True, error_model="numpy", _nrt=False, inline="always")
@@ -58,9 +64,13 @@ def _orthogonal_unit(v, axis):
 def sample_direction(x, p0, p1, p2, omega, u1, u2):
     """A unit direction from x toward the triangle, uniform in solid angle (pdf 1 / omega,
     omega = solid_angle(x, p0, p1, p2))."""
-    a = _unit(sub(p0, x))
-    b = _unit(sub(p1, x))
-    c = _unit(sub(p2, x))
+    _, a, b, c = spherical_triangle(x, p0, p1, p2)
+    return sample_spherical_triangle(a, b, c, omega, u1, u2)
+
+
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+def sample_spherical_triangle(a, b, c, omega, u1, u2):
+    """sample_direction given the unit vertex directions a, b, c and the solid angle."""
     # Interior angle alpha at vertex a, between the great circles ab and ac.
     n_ab = _unit(cross(a, b))
     n_ac = _unit(cross(a, c))
