@@ -776,3 +776,26 @@ def test_extreme_coefficients_give_finite_outputs():
     stacks += [stack_of(i, (i + 3) % m) for i in range(m)]  # overlapping pairs, mixed kinds
     stacks += [stack_of(0, 2, 5, 9)]
     assert _all_outputs_finite(mt, np.array(stacks), 64) == 0
+
+
+def test_instances_share_their_grids():
+    """Media made from the same arrays (instances of one volume) store them once; each
+    instance reads the same values through its own transform."""
+    rng = np.random.default_rng(4)
+    density = rng.random((6, 5, 4)).astype(np.float32)
+    temperature = (1500.0 + 1000.0 * rng.random((6, 5, 4))).astype(np.float32)
+    moved = np.eye(4)
+    moved[:3, 3] = (3.0, 0.0, 0.0)
+    kw = dict(temperature=temperature, blackbody_intensity=1.0)
+    one = compile_media([grid_medium(density, (1, 1, 1), (1, 1, 1), **kw)])
+    two = compile_media([grid_medium(density, (1, 1, 1), (1, 1, 1), **kw),
+                         grid_medium(density, (1, 1, 1), (1, 1, 1), to_world=moved, **kw)])
+    assert two.grid_data.size == one.grid_data.size
+    assert two.maj_data.shape == one.maj_data.shape
+    np.testing.assert_array_equal(two.index[0, I_MAJ_OFFSET], two.index[1, I_MAJ_OFFSET])
+    copy = compile_media([grid_medium(density, (1, 1, 1), (1, 1, 1), **kw),
+                          grid_medium(density.copy(), (1, 1, 1), (1, 1, 1), to_world=moved, **kw)])
+    assert copy.grid_data.size > one.grid_data.size  # equal values, distinct arrays: stored twice
+    for i in range(2):
+        for u in ((0.3, 0.6, 0.2), (0.9, 0.1, 0.5)):
+            assert grid_lookup(two, i, 0, u) == grid_lookup(copy, i, 0, u) > 0.0

@@ -175,27 +175,10 @@ def stack_reference(images: np.ndarray, spp: int, seconds: float) -> Reference:
     return Reference(images.mean(axis=0), images.var(axis=0, ddof=1) / k, spp * k, seconds)
 
 
-def box_mean(image: np.ndarray, radius: int) -> np.ndarray:
-    """Mean over the (2 radius + 1)^2 window around each pixel, edges repeated."""
-    padded = np.pad(image, ((radius, radius), (radius, radius), (0, 0)), mode="edge")
-    sums = np.cumsum(np.cumsum(padded, axis=0), axis=1)
-    sums = np.pad(sums, ((1, 0), (1, 0), (0, 0)))
-    w = 2 * radius + 1
-    h, wd = image.shape[:2]
-    return (sums[w:w + h, w:w + wd] - sums[:h, w:w + wd] - sums[w:w + h, :wd] + sums[:h, :wd]) / (w * w)
-
-
 def robust_estimate(film: Film) -> float:
-    """Film.rel_mse_estimate with each pixel's squared mean in the denominator replaced by
-    min(mean, 5x5 box mean)^2. A firefly raises a pixel's variance and its mean together,
-    so the current estimate's per-pixel term stays below ~1 however wrong the pixel is;
-    the neighbourhood mean barely moves. Measured here to propose it for the renderer."""
-    if film.spp < 2:
-        return math.nan
-    shape = (film.height, film.width, 3)
-    mean = film.mean().reshape(shape)
-    level = np.minimum(mean, box_mean(mean, 2))
-    return float(np.mean(film.variance_of_mean().reshape(shape) / (level * level + REL_EPS)))
+    """The renderer's online estimate (Film.rel_mse_estimate: levels floored by the 5x5
+    neighbourhood mean, proposed and measured here first)."""
+    return film.rel_mse_estimate()
 
 
 # ------------------------------------------------------------------------------ curves

@@ -117,6 +117,10 @@ def compile_media(media: list[Medium], use_majorant_grid: bool = True) -> MediaT
     majs: list[np.ndarray] = []
     grid_size = 0
     maj_size = 0
+    # Instances of one volume share their arrays (the exporter passes the same objects):
+    # store each array once, keyed by identity (the media list keeps them alive meanwhile).
+    shared_grids: dict[tuple, tuple[int, tuple[int, int, int], np.ndarray]] = {}
+    shared_majs: dict[tuple, tuple[int, tuple[int, int, int]]] = {}
 
     for i, med in enumerate(media):
         path = f"media[{i}]"
@@ -137,30 +141,32 @@ def compile_media(media: list[Medium], use_majorant_grid: bool = True) -> MediaT
         to_unit[i], axis_lengths = _world_to_unit(med, path)
         blackbody_grid = None
         for which, name in enumerate(GRID_NAMES):
-            arr = getattr(med, name)
-            if arr is None:
+            source = getattr(med, name)
+            if source is None or (which == GRID_BLACKBODY and not emits_blackbody):
                 continue
-            if which == GRID_BLACKBODY:
-                if not emits_blackbody:
-                    continue
-                arr = _blackbody_grid(arr, med.blackbody_intensity)
-            arr = np.ascontiguousarray(arr, dtype=np.float32)
-            grid_offset[i, which] = grid_size
-            grid_dims[i, which] = (arr.shape[2], arr.shape[1], arr.shape[0])
-            grids.append(arr.ravel())
+            key = (which, id(source), med.blackbody_intensity if which == GRID_BLACKBODY else 0.0)
+            if key not in shared_grids:
+                arr = _blackbody_grid(source, med.blackbody_intensity) if which == GRID_BLACKBODY else source
+                arr = np.ascontiguousarray(arr, dtype=np.float32)
+                shared_grids[key] = (grid_size, (arr.shape[2], arr.shape[1], arr.shape[0]), arr)
+                grids.append(arr.ravel())
+                grid_size += arr.size
+            grid_offset[i, which], grid_dims[i, which], arr = shared_grids[key]
             if which == GRID_BLACKBODY:
                 blackbody_grid = arr
-            grid_size += arr.size
 
         cells = _majorant_cells(med.density.shape, use_majorant_grid)
-        maj = np.zeros((cells[2], cells[1], cells[0], 2), np.float32)
-        maj[..., 0] = _cell_max(np.ascontiguousarray(med.density, np.float32), cells)
-        if has_emission[i]:
-            maj[..., 1] = _emitting_cells(med, cells, emits_constant, blackbody_grid)
-        maj_offset[i] = maj_size
-        maj_dims[i] = cells
-        majs.append(maj.reshape(-1, 2))
-        maj_size += maj.shape[0] * maj.shape[1] * maj.shape[2]
+        maj_key = (id(med.density), cells, bool(has_emission[i]), emits_constant, id(med.flame),
+                   id(med.temperature), med.blackbody_intensity)
+        if maj_key not in shared_majs:
+            maj = np.zeros((cells[2], cells[1], cells[0], 2), np.float32)
+            maj[..., 0] = _cell_max(np.ascontiguousarray(med.density, np.float32), cells)
+            if has_emission[i]:
+                maj[..., 1] = _emitting_cells(med, cells, emits_constant, blackbody_grid)
+            shared_majs[maj_key] = (maj_size, tuple(cells))
+            majs.append(maj.reshape(-1, 2))
+            maj_size += maj.shape[0] * maj.shape[1] * maj.shape[2]
+        maj_offset[i], maj_dims[i] = shared_majs[maj_key]
         emission_rate[i] = EMISSION_COLLISIONS_PER_CELL * max(c / n for c, n in zip(cells, axis_lengths))
 
     grid_data = np.concatenate(grids) if grids else np.zeros(1, np.float32)
