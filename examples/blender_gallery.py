@@ -84,10 +84,15 @@ def cornell(size: int, bounces: int, light_radiance: float = C.LIGHT_RADIANCE, l
     emission.inputs["Color"].default_value = (*light_color, 1.0)
     C.add_camera(scene, (0.0, -3.4, 1.0), (90.0, 0.0, 0.0), lens=35.0)
     C.black_world(scene)
+    return use_haze(scene, size, bounces)
+
+
+def use_haze(scene: bpy.types.Scene, size: int, bounces: int) -> bpy.types.Scene:
+    """Render `scene` with Haze at size x size pixels and `bounces` bounces."""
     render = scene.render
     render.resolution_x = render.resolution_y = size
     render.resolution_percentage = 100
-    scene.render.engine = "HAZE"
+    render.engine = "HAZE"
     scene.haze.max_bounces = bounces
     return scene
 
@@ -260,12 +265,7 @@ def cloud(size: int, folder: Path) -> bpy.types.Scene:
     background.inputs["Strength"].default_value = 0.6
     scene.world = world
     C.add_camera(scene, (0.0, -4.2, 0.9), (92.0, 0.0, 0.0), lens=22.0)
-    render = scene.render
-    render.resolution_x = render.resolution_y = size
-    render.resolution_percentage = 100
-    scene.render.engine = "HAZE"
-    scene.haze.max_bounces = MEDIA_BOUNCES
-    return scene
+    return use_haze(scene, size, MEDIA_BOUNCES)
 
 
 def build(name: str, size: int, folder: Path) -> bpy.types.Scene:

@@ -278,7 +278,7 @@ class ShaderGraph:
     def _evaluate_output(self, node, socket, scope: tuple) -> np.ndarray | None:
         if node.mute:
             return self._muted_output(node, socket, scope)
-        handler = VALUE_HANDLERS.get(node.bl_idname)
+        handler = self.handler(node)
         if handler is None:
             self.warn_unsupported(node)
             return None
@@ -289,7 +289,17 @@ class ShaderGraph:
         for link in node.internal_links:
             if link.to_socket.identifier == socket.identifier:
                 return convert(self.input_value(link.from_socket, scope), link.from_socket.type, socket.type)
-        return sided(0.0, socket_width(socket.type))
+        return self.zero(socket_width(socket.type))
+
+    @staticmethod
+    def handler(node):
+        """The function that evaluates `node`'s outputs (None: unsupported)."""
+        return VALUE_HANDLERS.get(node.bl_idname)
+
+    @staticmethod
+    def zero(width: int) -> np.ndarray:
+        """A zero value of `width` components in this graph's array form (sided)."""
+        return sided(0.0, width)
 
     def group_output_input(self, group_node, identifier: str):
         tree = group_node.node_tree

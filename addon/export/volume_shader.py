@@ -86,20 +86,14 @@ class VoxelGraph(ShaderGraph):
         values = components if len(components) == width else [components[0]] * width
         return np.array([values], np.float64)
 
-    def _evaluate_output(self, node, socket, scope: tuple) -> np.ndarray | None:
-        if node.mute:
-            return self._muted_output(node, socket, scope)
-        handler = VOXEL_HANDLERS.get(node.bl_idname) or VALUE_HANDLERS.get(node.bl_idname)
-        if handler is None:
-            self.warn_unsupported(node)
-            return None
-        return handler(self, node, socket, scope)
+    @staticmethod
+    def handler(node):
+        return VOXEL_HANDLERS.get(node.bl_idname) or VALUE_HANDLERS.get(node.bl_idname)
 
-    def _muted_output(self, node, socket, scope: tuple) -> np.ndarray | None:
-        for link in node.internal_links:
-            if link.to_socket.identifier == socket.identifier:
-                return convert(self.input_value(link.from_socket, scope), link.from_socket.type, socket.type)
-        return np.zeros((1, socket_width(socket.type)))
+    @staticmethod
+    def zero(width: int) -> np.ndarray:
+        """One row (the same for every voxel) of `width` zeros."""
+        return np.zeros((1, width))
 
     # ------------------------------------------------------------------ grids
     def grid(self, name: str) -> np.ndarray | None:

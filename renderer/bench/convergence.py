@@ -175,12 +175,6 @@ def stack_reference(images: np.ndarray, spp: int, seconds: float) -> Reference:
     return Reference(images.mean(axis=0), images.var(axis=0, ddof=1) / k, spp * k, seconds)
 
 
-def robust_estimate(film: Film) -> float:
-    """The renderer's online estimate (Film.rel_mse_estimate: levels floored by the 5x5
-    neighbourhood mean, proposed and measured here first)."""
-    return film.rel_mse_estimate()
-
-
 # ------------------------------------------------------------------------------ curves
 
 
@@ -194,17 +188,14 @@ class Curve:
     relmse: list[float] = field(default_factory=list)
     rmse: list[float] = field(default_factory=list)
     estimate: list[float] = field(default_factory=list)  # Haze's own running estimate (nan for Cycles)
-    robust: list[float] = field(default_factory=list)  # the firefly-proof estimate proposed below
     startup: float = math.nan  # fixed cost per render: intercept of seconds against spp
 
-    def add(self, seconds: float, spp: int, relmse: float, rmse: float, estimate: float = math.nan,
-            robust: float = math.nan) -> None:
+    def add(self, seconds: float, spp: int, relmse: float, rmse: float, estimate: float = math.nan) -> None:
         self.seconds.append(seconds)
         self.spp.append(spp)
         self.relmse.append(relmse)
         self.rmse.append(rmse)
         self.estimate.append(estimate)
-        self.robust.append(robust)
 
     def fit_startup(self) -> None:
         """The part of the wall time that does not grow with samples (compile, process start,
@@ -262,7 +253,7 @@ def haze_curve(scene: Scene, label: str, overrides: dict, reference: Reference, 
         for frame in frames:
             image = frame.film.mean().reshape(shape)
             curve.add(frame.elapsed, frame.spp, reference.relmse(image), reference.rmse(image),
-                      frame.error_estimate, robust_estimate(frame.film))
+                      frame.error_estimate)
             if curve.relmse[-1] < floor:
                 break
     finally:
@@ -425,18 +416,17 @@ def fmt(value: float, digits: int = 3) -> str:
 
 def budget_table(result: SceneResult, budgets: list[float]) -> list[str]:
     """Markdown rows: per budget and curve, the last image available by then."""
-    rows = ["| budget s | curve | seconds | spp | relMSE | RMSE | Haze's estimate | proposed estimate |",
-            "|---:|---|---:|---:|---:|---:|---:|---:|"]
+    rows = ["| budget s | curve | seconds | spp | relMSE | RMSE | Haze's estimate |",
+            "|---:|---|---:|---:|---:|---:|---:|"]
     curves = result.haze + [c for c in (result.cycles, result.cycles_vs_haze) if c is not None]
     for budget in budgets:
         for curve in curves:
             i = curve.at_budget(budget)
             if i is None:
-                rows.append(f"| {budget:g} | {curve.label} | - | - | - | - | - | - |")
+                rows.append(f"| {budget:g} | {curve.label} | - | - | - | - | - |")
                 continue
             rows.append(f"| {budget:g} | {curve.label} | {curve.seconds[i]:.2f} | {curve.spp[i]} | "
-                        f"{fmt(curve.relmse[i])} | {fmt(curve.rmse[i])} | {fmt(curve.estimate[i])} | "
-                        f"{fmt(curve.robust[i])} |")
+                        f"{fmt(curve.relmse[i])} | {fmt(curve.rmse[i])} | {fmt(curve.estimate[i])} |")
     return rows
 
 
@@ -492,8 +482,8 @@ def reference_rows(results: list[SceneResult]) -> list[str]:
 
 def estimate_rows(results: list[SceneResult]) -> list[str]:
     """The online estimates against the true relMSE along each scene's default Haze curve."""
-    rows = ["| scene | setting | spp | true relMSE | Haze's estimate | true / estimate | proposed estimate | "
-            "true / proposed |", "|---|---|---:|---:|---:|---:|---:|---:|"]
+    rows = ["| scene | setting | spp | true relMSE | Haze's estimate | true / estimate |",
+            "|---|---|---:|---:|---:|---:|"]
     for result in results:
         if not result.haze:
             continue
@@ -504,9 +494,7 @@ def estimate_rows(results: list[SceneResult]) -> list[str]:
         for i in picks:
             true = curve.relmse[i]
             rows.append(f"| {result.scene.name} | {curve.label} | {curve.spp[i]} | {fmt(true)} | "
-                        f"{fmt(curve.estimate[i])} | "
-                        f"{fmt(true / curve.estimate[i], 2)} | {fmt(curve.robust[i])} | "
-                        f"{fmt(true / curve.robust[i], 2)} |")
+                        f"{fmt(curve.estimate[i])} | {fmt(true / curve.estimate[i], 2)} |")
     return rows
 
 

@@ -89,8 +89,8 @@ def _triangle(lt, light):
 
 
 @njit(cache=True, error_model="numpy", _nrt=False, inline="always")
-def _near(lt, light, x, p0, p1, p2):
-    """Whether triangle light `light` looks big from x: its solid angle estimated from the
+def _near(x, p0, p1, p2):
+    """Whether the triangle light p0 p1 p2 looks big from x: its solid angle estimated from the
     centroid, A |cos| / r^2, at least SOLID_ANGLE_GATE. Far triangles keep area sampling,
     which is as good there and cheaper (the exact solid angle and Arvo's sampler cost about
     a fifth of a surface scene's time per sample). A rule of (x, triangle) only, so light
@@ -129,7 +129,7 @@ def connect_light(lt, light, lp, x, u1, u2):
     c = (float(color[light, 0]), float(color[light, 1]), float(color[light, 2]))
     if k == TRIANGLE:
         p0, p1, p2 = _triangle(lt, light)
-        if _near(lt, light, x, p0, p1, p2):
+        if _near(x, p0, p1, p2):
             omega, a, b, cv = spherical_triangle(x, p0, p1, p2)
             if use_solid_angle(omega):
                 wi = sample_spherical_triangle(a, b, cv, omega, u1, u2)
@@ -203,7 +203,7 @@ def triangle_light_pdf(lt, light, x, p, cos_l):
     """Solid-angle pdf, with selection, of light-sampling point p on triangle light `light`
     from x, where cos_l is the cosine at the light."""
     p0, p1, p2 = _triangle(lt, light)
-    if _near(lt, light, x, p0, p1, p2):
+    if _near(x, p0, p1, p2):
         omega = spherical_triangle(x, p0, p1, p2)[0]
         if use_solid_angle(omega):
             return lt[7][light] / omega

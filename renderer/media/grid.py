@@ -48,30 +48,22 @@ def _axis(x, n):
 
 
 @njit(cache=True, error_model="numpy", _nrt=False, inline="always")
-def grid_lookup(mt, m, which, u):
-    """Trilinear value of grid `which` of medium m at unit-cube point u (0 outside)."""
-    if not (0.0 <= u[0] <= 1.0 and 0.0 <= u[1] <= 1.0 and 0.0 <= u[2] <= 1.0):
-        return 0.0
+def _cell(mt, m, which, u, channels):
+    """Where the trilinear stencil of grid `which` (values of `channels` floats interleaved)
+    sits at unit-cube point u: (base index, steps di, dj, dk, upper weights fx, fy, fz).
+    A clamped axis has weight 0 on its "+1" voxel; its step is 0 there so nothing past the
+    edge is read."""
     nx = grid_dim(mt, m, which, 0)
     ny = grid_dim(mt, m, which, 1)
     nz = grid_dim(mt, m, which, 2)
     i, fx = _axis(u[0], nx)
     j, fy = _axis(u[1], ny)
     k, fz = _axis(u[2], nz)
-    # A clamped axis has weight 0 on its "+1" voxel; the step is 0 there so nothing past
-    # the edge is read.
-    di = 1 if i + 1 < nx else 0
-    dj = nx if j + 1 < ny else 0
-    dk = nx * ny if k + 1 < nz else 0
-    data = mt.grid_data
-    b = grid_offset(mt, m, which) + (k * ny + j) * nx + i
-    c00 = data[b] * (1.0 - fx) + data[b + di] * fx
-    c10 = data[b + dj] * (1.0 - fx) + data[b + dj + di] * fx
-    c01 = data[b + dk] * (1.0 - fx) + data[b + dk + di] * fx
-    c11 = data[b + dk + dj] * (1.0 - fx) + data[b + dk + dj + di] * fx
-    c0 = c00 * (1.0 - fy) + c10 * fy
-    c1 = c01 * (1.0 - fy) + c11 * fy
-    return c0 * (1.0 - fz) + c1 * fz
+    di = channels if i + 1 < nx else 0
+    dj = channels * nx if j + 1 < ny else 0
+    dk = channels * nx * ny if k + 1 < nz else 0
+    b = grid_offset(mt, m, which) + channels * ((k * ny + j) * nx + i)
+    return b, di, dj, dk, fx, fy, fz
 
 
 @njit(cache=True, error_model="numpy", _nrt=False, inline="always")
@@ -87,22 +79,27 @@ def _trilinear(data, b, di, dj, dk, fx, fy, fz):
 
 
 @njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+def _inside(u):
+    return 0.0 <= u[0] <= 1.0 and 0.0 <= u[1] <= 1.0 and 0.0 <= u[2] <= 1.0
+
+
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+def grid_lookup(mt, m, which, u):
+    """Trilinear value of grid `which` of medium m at unit-cube point u (0 outside)."""
+    if not _inside(u):
+        return 0.0
+    b, di, dj, dk, fx, fy, fz = _cell(mt, m, which, u, 1)
+    return _trilinear(mt.grid_data, b, di, dj, dk, fx, fy, fz)
+
+
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def grid_lookup3(mt, m, which, u):
     """Trilinear RGB value of three-channel grid `which` (channels interleaved, see
     compile.GRID_BLACKBODY) of medium m at unit-cube point u ((0, 0, 0) outside)."""
-    if not (0.0 <= u[0] <= 1.0 and 0.0 <= u[1] <= 1.0 and 0.0 <= u[2] <= 1.0):
+    if not _inside(u):
         return (0.0, 0.0, 0.0)
-    nx = grid_dim(mt, m, which, 0)
-    ny = grid_dim(mt, m, which, 1)
-    nz = grid_dim(mt, m, which, 2)
-    i, fx = _axis(u[0], nx)
-    j, fy = _axis(u[1], ny)
-    k, fz = _axis(u[2], nz)
-    di = 3 if i + 1 < nx else 0
-    dj = 3 * nx if j + 1 < ny else 0
-    dk = 3 * nx * ny if k + 1 < nz else 0
+    b, di, dj, dk, fx, fy, fz = _cell(mt, m, which, u, 3)
     data = mt.grid_data
-    b = grid_offset(mt, m, which) + 3 * ((k * ny + j) * nx + i)
     return (
         _trilinear(data, b, di, dj, dk, fx, fy, fz),
         _trilinear(data, b + 1, di, dj, dk, fx, fy, fz),

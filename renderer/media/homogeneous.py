@@ -127,18 +127,9 @@ def sample_exponential(sigma, u):
 
 
 @njit(cache=True, error_model="numpy", _nrt=False, inline="always")
-def sample_truncated_exponential(sigma, tmax, u):
-    """Distance on [0, tmax) with density sigma exp(-sigma t) / (1 - exp(-sigma tmax))."""
-    x = optical_depth(sigma, tmax)
-    if x > 0.0:
-        t = -math.log1p(u * math.expm1(-x)) / sigma
-        return min(t, tmax)
-    return u * tmax
-
-
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def sample_truncated(sigma, tmax, miss, u):
-    """sample_truncated_exponential given miss = 1 - exp(-sigma tmax) (see segment)."""
+    """Distance on [0, tmax) with density sigma exp(-sigma t) / (1 - exp(-sigma tmax)), given
+    miss = 1 - exp(-sigma tmax) (see segment)."""
     if sigma > 0.0 and miss > 0.0:
         return min(-math.log1p(-u * miss) / sigma, tmax)
     return u * tmax
@@ -146,23 +137,17 @@ def sample_truncated(sigma, tmax, miss, u):
 
 @njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def truncated_pdf(sigma, tmax, miss, tr_t):
-    """truncated_exponential_pdf given miss = 1 - exp(-sigma tmax) and tr_t = exp(-sigma t)."""
+    """Density of sample_truncated at t, given miss = 1 - exp(-sigma tmax) and
+    tr_t = exp(-sigma t)."""
     if sigma > 0.0 and miss > 0.0:
         return sigma * tr_t / miss
     return 1.0 / tmax
 
 
 @njit(cache=True, error_model="numpy", _nrt=False, inline="always")
-def truncated_exponential_pdf(sigma, tmax, t):
-    x = optical_depth(sigma, tmax)
-    if x > 0.0:
-        return sigma * math.exp(-sigma * t) / -math.expm1(-x)
-    return 1.0 / tmax
-
-
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
-def free_flight(sigma_a, sigma_s, tmax, p, u_channel, u_distance):
-    """Sample the next collision on [0, tmax) in a homogeneous medium by spectral MIS.
+def free_flight_segment(sigma_s, st, tr_end, tmax, p, u_channel, u_distance):
+    """Sample the next collision on [0, tmax) in a homogeneous medium by spectral MIS, given
+    sigma_t = st and tr_end = T(tmax) (see segment).
 
     Channel c (probability p_c) proposes t ~ sigma_t,c exp(-sigma_t,c t). Returns
     (t, scattered, weight):
@@ -172,13 +157,6 @@ def free_flight(sigma_a, sigma_s, tmax, p, u_channel, u_distance):
     Both denominators contain the picked channel's own term, which cannot underflow
     (sigma_t,c t <= 16.7), so the weights are finite for any mix of coefficients.
     """
-    st = (sigma_a[0] + sigma_s[0], sigma_a[1] + sigma_s[1], sigma_a[2] + sigma_s[2])
-    return free_flight_segment(sigma_s, st, beer(st, tmax), tmax, p, u_channel, u_distance)
-
-
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
-def free_flight_segment(sigma_s, st, tr_end, tmax, p, u_channel, u_distance):
-    """free_flight given sigma_t and tr_end = T(tmax) (see segment)."""
     c = pick_channel(p, u_channel)
     t = sample_exponential(st[c], u_distance)
     if t < tmax:
