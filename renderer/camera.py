@@ -5,7 +5,7 @@ import math
 from numba import njit
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False)
 def camera_ray(to_world, tan_half, shift, px, py, width, height, u1, u2):
     """Ray through pixel (px, py), row 0 at the top. Returns (origin, unit direction).
 

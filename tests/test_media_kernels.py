@@ -226,6 +226,25 @@ def test_equiangular_sample_matches_pdf(light, tmax):
         np.testing.assert_allclose(pdf, equiangular_pdf(o, d, light, tmax, t), rtol=1e-9)
 
 
+@pytest.mark.parametrize("light, tmax", EQUI_CASES)
+def test_equiangular_sample_inverts_the_cdf(light, tmax):
+    """t(u) solves CDF(t) = u with CDF(t) = (atan((t - delta) / D) - theta_a) / theta_d, so
+    the sampler (a sincos form of the tangent addition formula) has the pdf's distribution.
+    The angle differences are written as one atan2 each (tangent of a difference), which
+    stays accurate when both angles are near pi/2 (the light on the ray line)."""
+    o, d = (0.0, 0.0, 0.0), (0.0, 1.0, 0.0)
+    delta = light[1]
+    big_d = max(math.hypot(light[0], light[2]), 1e-7 * abs(delta), 1e-12)
+
+    def angle_from_start(t):
+        return math.atan2(big_d * t, big_d * big_d - delta * (t - delta))
+
+    theta_d = angle_from_start(tmax)
+    for u in np.linspace(0.0, 1.0 - 2.0**-24, 97):
+        t, _ = equiangular_sample(o, d, light, tmax, u)
+        assert abs(angle_from_start(t) / theta_d - u) < 1e-9
+
+
 # ------------------------------------------------------------------------------ NEE vertex
 
 

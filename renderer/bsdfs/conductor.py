@@ -12,13 +12,13 @@ from renderer.bsdfs.fresnel import conductor_fresnel
 _ZERO3 = (0.0, 0.0, 0.0)
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False)
 def conductor_eval(color, roughness, ior, wo, wi):
     """A delta lobe has no density to evaluate."""
     return _ZERO3, 0.0
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False)
 def conductor_sample(color, roughness, ior, fresnel, tint, wo, u1, u2, u3):
     """Mirror direction; weight = the Fresnel reflectance. pdf is the discrete probability
     of the branch (1)."""

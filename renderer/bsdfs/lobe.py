@@ -31,7 +31,7 @@ from renderer.bsdfs.transparent import transparent_sample
 _ZERO3 = (0.0, 0.0, 0.0)
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False)
 def lobe_is_delta(kind, roughness):
     if kind == DIELECTRIC or kind == CONDUCTOR or kind == TRANSPARENT:
         return True
@@ -40,7 +40,7 @@ def lobe_is_delta(kind, roughness):
     return False
 
 
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
 def lobe_eval(kind, color, roughness, ior, fresnel, tint, wo, wi):
     """(f, pdf) of one lobe; zero for delta lobes. `fresnel` and `tint` are the conductor
     lobes' Fresnel mode and edge tint (renderer.bsdfs FRESNEL_*); other lobes ignore them."""
@@ -60,7 +60,7 @@ def lobe_eval(kind, color, roughness, ior, fresnel, tint, wo, wi):
     return _ZERO3, 0.0
 
 
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
 def lobe_sample(kind, color, roughness, ior, fresnel, tint, wo, u1, u2, u3):
     """(wi, weight = f |cos| / pdf, pdf, is_delta) of one lobe.
 

@@ -42,7 +42,7 @@ from renderer.kernels.vecmath import INV_PI, normalize
 _ZERO3 = (0.0, 0.0, 0.0)
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False)
 def _coat_probability(color, e_o):
     """Chance of sampling the layer: its share of E(wo) + avg(color) (1 - E(wo))."""
     base = (color[0] + color[1] + color[2]) / 3.0 * (1.0 - e_o)
@@ -50,13 +50,13 @@ def _coat_probability(color, e_o):
     return e_o / total if total > 0.0 else 1.0
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False)
 def _layer_eta(ior):
     """The layer's relative index, >= 1 (the layer is seen from outside)."""
     return ior if ior >= 1.0 else 1.0 / max(ior, 1e-6)
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False)
 def layer_albedo(mu, roughness, eta):
     """max(Cycles' estimate E, the single-scattering E_ss) of the layer for wo.z = mu."""
     e = spec_albedo(mu, roughness, eta)
@@ -64,7 +64,7 @@ def layer_albedo(mu, roughness, eta):
     return min(max(e, e_ss, 0.0), 1.0)
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False)
 def plastic_eval(color, roughness, ior, wo, wi):
     if wo[2] <= 0.0 or wi[2] <= 0.0:
         return _ZERO3, 0.0
@@ -85,7 +85,7 @@ def plastic_eval(color, roughness, ior, wo, wi):
     return f, pdf
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False)
 def plastic_sample(color, roughness, ior, wo, u1, u2, u3):
     """u3 picks layer or base; (u1, u2) sample the chosen one. The weight uses the full
     mixture f and pdf (of the non-delta parts), so it equals eval's f cos / pdf."""

@@ -28,7 +28,7 @@ from renderer.kernels.vecmath import normalize, scale
 _ZERO3 = (0.0, 0.0, 0.0)
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False)
 def rough_conductor_eval(color, roughness, ior, fresnel, tint, wo, wi):
     if wo[2] <= 0.0 or wi[2] <= 0.0:
         return _ZERO3, 0.0
@@ -40,7 +40,7 @@ def rough_conductor_eval(color, roughness, ior, fresnel, tint, wo, wi):
     return scale(conductor_fresnel(fresnel, color, tint, cos_oh), f), ggx_reflection_pdf(alpha, wo, wi)
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False)
 def rough_conductor_sample(color, roughness, ior, fresnel, tint, wo, u1, u2, u3):
     """Visible-normal sampling; the weight f cos / pdf reduces to F(wo.h) G2 / G1(wo)."""
     if wo[2] <= 0.0:

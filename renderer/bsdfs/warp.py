@@ -4,10 +4,11 @@ import math
 
 from numba import njit
 
+from renderer.kernels import fastmath as fm
 from renderer.kernels.vecmath import INV_PI
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False)
 def square_to_cosine_hemisphere(u1, u2):
     """Cosine-weighted direction on the upper hemisphere: pdf = cos(theta) / pi.
 
@@ -17,9 +18,10 @@ def square_to_cosine_hemisphere(u1, u2):
     r = math.sqrt(u1)
     phi = 2.0 * math.pi * u2
     z = math.sqrt(max(0.0, 1.0 - u1))
-    return (r * math.cos(phi), r * math.sin(phi), z)
+    sin_phi, cos_phi = fm.sincos(phi)
+    return (r * cos_phi, r * sin_phi, z)
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False)
 def cosine_hemisphere_pdf(cos_theta):
     return cos_theta * INV_PI if cos_theta > 0.0 else 0.0

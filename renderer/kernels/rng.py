@@ -20,7 +20,7 @@ _S40 = np.uint64(40)
 _INV_2_24 = 1.0 / 16777216.0
 
 
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
 def mix64(x):
     """splitmix64 finaliser: a bijective avalanche on uint64."""
     x = (x ^ (x >> _S30)) * _M1
@@ -28,7 +28,7 @@ def mix64(x):
     return x ^ (x >> _S31)
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False)
 def path_key(seed, pixel, sample):
     """Key of one path: a hash of (seed, pixel index, sample index)."""
     k = mix64(np.uint64(seed) * _GOLDEN + np.uint64(1))
@@ -36,7 +36,7 @@ def path_key(seed, pixel, sample):
     return mix64(k ^ (np.uint64(sample) * _M1 + _GOLDEN))
 
 
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
 def uniform(key, dim):
     """Uniform float in [0, 1) for dimension `dim` of the path with `key`.
 

@@ -22,18 +22,19 @@ import math
 
 from numba import njit
 
+from ..kernels import fastmath as fm
 from ..kernels.vecmath import cross, dot, length, madd, scale, sub
 
 MIN_SOLID_ANGLE = 1e-4  # steradians
 
 
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
 def _unit(v):
     n = length(v)
     return scale(v, 1.0 / n) if n > 0.0 else (0.0, 0.0, 0.0)
 
 
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
 def spherical_triangle(x, p0, p1, p2):
     """(omega, a, b, c): the solid angle (sr) subtended at x by the triangle p0 p1 p2 (0 when
     x is in its plane, outside it) and the unit vectors from x to its vertices."""
@@ -41,26 +42,26 @@ def spherical_triangle(x, p0, p1, p2):
     b = _unit(sub(p1, x))
     c = _unit(sub(p2, x))
     triple = abs(dot(a, cross(b, c)))
-    return 2.0 * math.atan2(triple, 1.0 + dot(a, b) + dot(b, c) + dot(c, a)), a, b, c
+    return 2.0 * fm.atan2(triple, 1.0 + dot(a, b) + dot(b, c) + dot(c, a)), a, b, c
 
 
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
 def solid_angle(x, p0, p1, p2):
     return spherical_triangle(x, p0, p1, p2)[0]
 
 
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
 def use_solid_angle(omega):
     return omega >= MIN_SOLID_ANGLE and math.isfinite(omega)
 
 
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
 def _orthogonal_unit(v, axis):
     """The unit component of v orthogonal to the unit vector axis."""
     return _unit(madd(v, axis, -dot(v, axis)))
 
 
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
 def sample_direction(x, p0, p1, p2, omega, u1, u2):
     """A unit direction from x toward the triangle, uniform in solid angle (pdf 1 / omega,
     omega = solid_angle(x, p0, p1, p2))."""
@@ -68,7 +69,7 @@ def sample_direction(x, p0, p1, p2, omega, u1, u2):
     return sample_spherical_triangle(a, b, c, omega, u1, u2)
 
 
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
 def sample_spherical_triangle(a, b, c, omega, u1, u2):
     """sample_direction given the unit vertex directions a, b, c and the solid angle."""
     # Interior angle alpha at vertex a, between the great circles ab and ac.
@@ -78,8 +79,7 @@ def sample_spherical_triangle(a, b, c, omega, u1, u2):
     sin_alpha = math.sqrt(max(0.0, 1.0 - cos_alpha * cos_alpha))
     # Sub-triangle a b c' of area u1 omega: sin and cos of (area - alpha), expanded.
     area = u1 * omega
-    sin_area = math.sin(area)
-    cos_area = math.cos(area)
+    sin_area, cos_area = fm.sincos(area)
     s = sin_area * cos_alpha - cos_area * sin_alpha
     t = cos_area * cos_alpha + sin_area * sin_alpha
     u = t - cos_alpha

@@ -21,7 +21,7 @@ from renderer.media.stack import EMPTY, MAX_STACK
 from renderer.media.table import emission, emits, grid_offset, is_grid
 
 
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
 def medium_emission(mt, m, p):
     """Emission of medium m at world point p (per unit length, RGB)."""
     if not emits(mt, m):
@@ -41,7 +41,7 @@ def medium_emission(mt, m, p):
     return e
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False)
 def stack_emission(mt, stack, p):
     """Emission of the whole stack at p: the entries' emission added."""
     e0 = e1 = e2 = 0.0

@@ -6,7 +6,12 @@ the point of the ray nearest the light and D the light's distance to the ray lin
     pdf(t) = D / ((theta_b - theta_a) (D^2 + (t - delta)^2))   on [0, tmax)
 
 with theta_a = atan2(-delta, D), theta_b = atan2(tmax - delta, D) cancels the 1/r^2 falloff
-of the light; it is sampled by t = delta + D tan(theta_a + u (theta_b - theta_a)).
+of the light; it is sampled by t = delta + D tan(theta_a + u (theta_b - theta_a)). With
+phi = u (theta_b - theta_a), tan(theta_a) = -delta / D and the tangent addition formula this is
+
+    t = (delta^2 + D^2) sin(phi) / (D cos(phi) + delta sin(phi)),
+
+one sincos and no atan2 or tan (the denominator is r cos(theta_a + phi) > 0 in exact maths).
 
 Robustness: a light on the ray line (D = 0) would make the pdf non-integrable, so D is
 floored at a tiny fraction of the light's distance (the same floor in sample and pdf keeps
@@ -14,10 +19,10 @@ them consistent, so the estimator stays unbiased); tmax may be huge (theta_b -> 
 the angle range is too small to invert accurately both fall back to uniform on [0, tmax).
 """
 
-import math
 
 from numba import njit
 
+from renderer.kernels import fastmath as fm
 from renderer.kernels.vecmath import dot, length, madd, sub
 
 MIN_THETA = 1e-9
@@ -25,24 +30,24 @@ D_FLOOR = 1e-7  # relative to |delta|
 D_MIN = 1e-12  # world units
 
 
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
 def equiangular_frame(o, d, light_p, tmax):
     """(delta, D, theta_d) of the segment [0, tmax) toward light_p.
 
     theta_d = theta_b - theta_a comes from one atan2: with a = -delta / D and
     b = (tmax - delta) / D, tan(theta_b - theta_a) = (b - a) / (1 + a b), and the difference
     lies in (0, pi) because D > 0, so theta_d = atan2(D tmax, D^2 - delta (tmax - delta)).
-    (atan2 dominated the medium kernel's maths before: four calls per vertex, now one or two.)
+    (atan2 dominated the medium kernel's maths before: four calls per vertex, now one.)
     """
     to_light = sub(light_p, o)
     delta = dot(to_light, d)
     big_d = length(madd(to_light, d, -delta))
     big_d = max(big_d, D_FLOOR * abs(delta), D_MIN)
-    theta_d = math.atan2(big_d * tmax, big_d * big_d - delta * (tmax - delta))
+    theta_d = fm.atan2(big_d * tmax, big_d * big_d - delta * (tmax - delta))
     return delta, big_d, theta_d
 
 
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
 def frame_pdf(frame, tmax, t):
     """Equiangular pdf of t for a frame from equiangular_frame."""
     delta, big_d, theta_d = frame
@@ -52,23 +57,26 @@ def frame_pdf(frame, tmax, t):
     return big_d / (theta_d * (big_d * big_d + x * x))
 
 
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
 def frame_sample(frame, tmax, u):
     """t in [0, tmax) drawn from the frame's equiangular pdf."""
     delta, big_d, theta_d = frame
     if theta_d < MIN_THETA:
         return u * tmax
-    theta_a = math.atan2(-delta, big_d)
-    # Clamp only rounding errors: tan(theta) lands in [-delta, tmax - delta] in exact maths.
-    return min(max(delta + big_d * math.tan(theta_a + u * theta_d), 0.0), tmax)
+    sin_phi, cos_phi = fm.sincos(u * theta_d)
+    denom = big_d * cos_phi + delta * sin_phi
+    if denom <= 0.0:  # theta_a + phi rounded up to pi/2: t is the far end
+        return tmax
+    # Clamp only rounding errors: t lands in [0, tmax] in exact maths.
+    return min(max((delta * delta + big_d * big_d) * sin_phi / denom, 0.0), tmax)
 
 
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
 def equiangular_pdf(o, d, light_p, tmax, t):
     return frame_pdf(equiangular_frame(o, d, light_p, tmax), tmax, t)
 
 
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
 def equiangular_sample(o, d, light_p, tmax, u):
     """(t, pdf) with t in [0, tmax)."""
     frame = equiangular_frame(o, d, light_p, tmax)

@@ -23,7 +23,7 @@ from renderer.media.homogeneous import beer, sample_truncated, segment, truncate
 from renderer.media.spectral import channel_probabilities, pick_channel
 
 
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
 def nee_vertex(mt, stack, o, d, tmax, light_p, throughput, key, dim, use_equiangular, uniform_channel):
     """(t, weight3, dim) for a HOMOGENEOUS stack: a point on [0, tmax) and its weight
     T(t) sigma_s / pdf(t). Consumes 3 dimensions. Plain truncated free flight when
@@ -32,7 +32,7 @@ def nee_vertex(mt, stack, o, d, tmax, light_p, throughput, key, dim, use_equiang
                          uniform_channel)
 
 
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
 def nee_vertex_on(seg, o, d, tmax, light_p, throughput, key, dim, use_equiangular, uniform_channel):
     """nee_vertex given the segment's constants (homogeneous.segment), so that the path's
     own free-flight sampling on the same segment can reuse them."""

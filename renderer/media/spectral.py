@@ -15,7 +15,7 @@ from numba import njit
 THIRD = 1.0 / 3.0
 
 
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
 def channel_probabilities(throughput, uniform_channel):
     """(p0, p1, p2): proportional to throughput, or 1/3 each when asked or when the
     throughput is zero / not finite."""
@@ -29,7 +29,7 @@ def channel_probabilities(throughput, uniform_channel):
     return (THIRD, THIRD, THIRD)
 
 
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
 def pick_channel(p, u):
     """Channel c with probability p[c]; never a channel with p[c] == 0."""
     if u < p[0]:

@@ -15,12 +15,12 @@ MAX_STACK = 4
 EMPTY = -1
 
 
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
 def stack_is_empty(stack):
     return stack[0] == EMPTY
 
 
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
 def stack_size(stack):
     n = 0
     while n < MAX_STACK and stack[n] != EMPTY:
@@ -28,7 +28,7 @@ def stack_size(stack):
     return n
 
 
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
 def stack_has_grid(mt, stack):
     for i in range(MAX_STACK):
         m = stack[i]
@@ -39,7 +39,7 @@ def stack_has_grid(mt, stack):
     return False
 
 
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
 def stack_has_emission(mt, stack):
     for i in range(MAX_STACK):
         m = stack[i]
@@ -50,7 +50,7 @@ def stack_has_emission(mt, stack):
     return False
 
 
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
 def stack_push(stack, m):
     """Add medium m in place. A full stack drops it (returns False): a fifth overlapping
     medium is ignored rather than crashing a render."""
@@ -61,7 +61,7 @@ def stack_push(stack, m):
     return False
 
 
-@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
 def stack_remove(stack, m):
     """Remove the last occurrence of medium m in place, keeping the slots packed.
     Returns False (and changes nothing) when m is not on the stack."""
