@@ -18,7 +18,8 @@ Placement: voxel (i, j, k) is centred at index coordinates (i, j, k) of the grid
 voxels lo..hi spans index coordinates lo - 0.5 .. hi + 0.5; Haze's grid box p0..p1 is that
 range, and to_world = object matrix x grid index-to-object matrix. The empty border voxels
 make the density fall to 0 over the last half voxel, as in Cycles (which reads the grid's
-background, 0, beyond its voxels), and the interface box may coincide with the grid box.
+background, 0, beyond its voxels); the interface box stops at the empty border voxels' centres
+(boundary_box), half a voxel inside the grid box.
 
 Cycles details followed here: a volume object's densities are multiplied by
 object_volume_density, 1 / |M (1, 1, 1) / sqrt 3| for render space "Object" (the default),
@@ -63,6 +64,35 @@ def box_mesh(name: str, medium: str, p0, p1, to_world: np.ndarray) -> Mesh:
     mirrored = np.linalg.det(to_world[:3, :3]) < 0.0
     triangles = BOX_TRIANGLES[:, ::-1].copy() if mirrored else BOX_TRIANGLES.copy()
     return Mesh(name, world, triangles, [INTERFACE_MATERIAL], medium=medium)
+
+
+def boundary_box(grid: GridMedium) -> tuple[np.ndarray, np.ndarray]:
+    """Index-space corners of the invisible boundary box around a grid medium.
+
+    The grid box spans start - 0.5 .. start + shape - 0.5 (voxel centres at integers). When
+    every grid's outer voxel layer is empty (cropping leaves one empty voxel on each side, an
+    uncropped read its background border) and no emission fills the box without a flame grid,
+    the medium is exactly 0 beyond those voxels' centres (lookups clamp to them), so the
+    boundary stops there, half a voxel inside the grid box: the same medium, but a grid box
+    resting on a surface (a fire on a floor, cropped to its voxels) does not put the boundary
+    in the surface's plane, where the two tie and a path that crosses the boundary first
+    leaves the medium on the far side of the surface and is lost. Cycles has no such face.
+    """
+    start = np.asarray(grid.start, np.float64)
+    shape = np.array(grid.density.shape[::-1])
+    full = (start - 0.5, start + shape - 0.5)
+    if np.any(shape < 3) or (grid.flame is None and np.any(np.asarray(grid.emission) != 0.0)):
+        return full
+    from renderer.media.blackbody import blackbody_emission_voxels
+
+    shell = np.ones(grid.density.shape[:3], bool)
+    shell[1:-1, 1:-1, 1:-1] = False
+    layers = [grid.density[shell]] + ([] if grid.flame is None else [grid.flame[shell]])
+    if grid.temperature is not None:  # its emission, as the renderer compiles it (0 K may emit)
+        layers.append(blackbody_emission_voxels(grid.temperature[shell], grid.blackbody_intensity))
+    if any(np.any(layer != 0.0) for layer in layers):
+        return full
+    return start, start + shape - 1.0
 
 
 def object_density_factor(matrix: np.ndarray, space: str) -> float:
@@ -188,8 +218,8 @@ class VolumeExporter:
                 self.messages.warn(item.source.subject, "blackbody emission is rendered without the object's "
                                    "volume density factor (object scale with render space 'Object')")
             media.append(medium)
-            meshes.append(box_mesh(f"{item.name} (volume boundary)", medium.name, medium.p0, medium.p1,
-                                   medium.to_world))
+            low, high = boundary_box(grid)
+            meshes.append(box_mesh(f"{item.name} (volume boundary)", medium.name, low, high, medium.to_world))
         for key, grid in converted.items():
             if grid is not None:
                 self.stats.extend(f"{self._subject_of(key)}: {line}" for line in grid.stats)
