@@ -27,7 +27,7 @@ from addon.export.grid_fields import clean_grid, crop, crop_box, evaluate_fields
 from addon.export.mesh import edge_problems
 from addon.export.smoke import base_resolution
 from addon.export.volume_shader import Blackbody, VoxelCoefficients
-from addon.export.volumes import box_mesh, boundary_box, object_density_factor
+from addon.export.volumes import boundary_box, box_mesh, object_density_factor
 from addon.volume_grids import (
     GridFileError,
     box_index_to_object,
@@ -1160,7 +1160,9 @@ def test_fire_volume_lights_a_wall_like_cycles(tmp_path):
 # distance; when the boundary won, the path left the fire below the floor and was lost (the
 # gallery's fire_ball lost 3-4 % of its wall light this way, at 0.01 above the floor none).
 # The boundary now stops at the border voxels' centres, where the medium is already 0.
-FLOOR_FIRE_BODY = FIRE_BODY.replace("RUNS, SIZE, SAMPLES", "BOUNCES = {bounces}\nRUNS, SIZE, SAMPLES").replace(
+FLOOR_FIRE_BODY = FIRE_BODY.replace(
+    "RUNS, SIZE, SAMPLES", "BOUNCES = {bounces}\nRUNS, SIZE, SAMPLES"
+).replace(
     "    return H.render_both(scene, os.getcwd(), RUNS, SAMPLES[0], SAMPLES[1], 0)",
     "    C.quad('Floor', [(-2, -2, -0.3), (2, -2, -0.3), (2, 2, -0.3), (-2, 2, -0.3)],\n"
     "           C.diffuse_material('Floor', (0.8, 0.8, 0.8)))\n"
