@@ -2,10 +2,10 @@
 
 import math
 
-from numba import njit
+from renderer.kernels import kernel
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False)
+@kernel
 def camera_ray(to_world, tan_half, shift, px, py, width, height, u1, u2):
     """Ray through pixel (px, py), row 0 at the top. Returns (origin, unit direction).
 

@@ -75,13 +75,19 @@ def _surface_only_kernels():
     import importlib.util
     import inspect
 
-    from ..integrator import kernels
+    from numba import njit
 
-    src = inspect.getsource(kernels).replace("cache=True", "cache=False")
+    from ..integrator import kernels
+    from ..kernels import JIT_OPTIONS
+
+    uncached = {**JIT_OPTIONS, "cache": False}  # a module built from a string has no cache file
+    src = inspect.getsource(kernels).replace("@inline_kernel\n", "@_uncached_inline\n")
+    src = src.replace("@kernel\n", "@_uncached\n")
     src = src.replace("    med = geo.medium[p]\n    if med >= 0:", "    med = -1\n    if med >= 0:")
     spec = importlib.util.spec_from_loader("renderer.integrator._surface_only", loader=None)
     module = importlib.util.module_from_spec(spec)
     module.__package__ = "renderer.integrator"
+    module.__dict__.update(_uncached=njit(**uncached), _uncached_inline=njit(**uncached, inline="always"))
     exec(compile(src, "<surface-only kernels>", "exec"), module.__dict__)
     return module
 

@@ -27,10 +27,10 @@ import math
 import os
 
 import numpy as np
-from numba import njit
 
 from renderer.bsdfs.fresnel import fresnel_dielectric
 from renderer.bsdfs.microfacet import ggx_G1, ggx_G2, ggx_sample_visible_normal, reflect
+from renderer.kernels import kernel
 
 COAT_ETA_MAX = 4.0  # plastic clamps its coat index to [1, COAT_ETA_MAX]
 N_MU = 32
@@ -41,7 +41,7 @@ _N_QUAD = 384  # midpoint visible-normal quadrature, _N_QUAD^2 points per entry
 _TABLE_PATH = os.path.join(os.path.dirname(__file__), "coat_albedo.npz")
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False)
+@kernel
 def _coat_albedo_quadrature(mu, alpha, eta, n):
     """E(mu) by midpoint quadrature over the visible-normal distribution.
 
@@ -62,7 +62,7 @@ def _coat_albedo_quadrature(mu, alpha, eta, n):
     return acc / (n * n)
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False)
+@kernel
 def _mu_node(k):
     """mu at node k: the nodes crowd toward grazing (mu = x^2, x uniform), where E changes
     fastest (Fresnel near eta = 1, shadowing at low roughness)."""
@@ -70,7 +70,7 @@ def _mu_node(k):
     return x * x
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False)
+@kernel
 def _s_node(i):
     """s at node i, crowded toward eta = 1 (s = _S_MAX z^2): near grazing E depends on
     mu / sqrt(eta^2 - 1) ~ mu / sqrt(s), steep in s as the index approaches 1."""
@@ -78,7 +78,7 @@ def _s_node(i):
     return _S_MAX * z * z
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False)
+@kernel
 def _rough_node(j):
     """Roughness at node j, crowded toward 0 (roughness = y^2): at grazing angles a little
     roughness already shadows much of the coat."""
@@ -86,7 +86,7 @@ def _rough_node(j):
     return y * y
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False)
+@kernel
 def build_tables(n_quad):
     e = np.zeros((N_ROUGH, N_S, N_MU))
     e_avg = np.zeros((N_ROUGH, N_S))
@@ -129,20 +129,20 @@ else:
     COAT_E, COAT_E_AVG = _load_tables()
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False)
+@kernel
 def coat_eta(ior):
     """The coat's relative index, >= 1 (a coat is seen from outside) and clamped to the table."""
     eta = ior if ior >= 1.0 else 1.0 / max(ior, 1e-6)
     return min(eta, COAT_ETA_MAX)
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False)
+@kernel
 def _lower_node(x, n):
     """Index of the node at or below x in [0, 1] on a grid of n uniform nodes (last cell closed)."""
     return min(int(min(max(x, 0.0), 1.0) * (n - 1)), n - 2)
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False)
+@kernel
 def _coords(roughness, eta):
     s = (eta - 1.0) / (eta + 1.0)
     roughness = min(max(roughness, 0.0), 1.0)
@@ -156,7 +156,7 @@ def _coords(roughness, eta):
     return ri, rf, si, sf
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False)
+@kernel
 def coat_albedo(mu, roughness, eta):
     """Tabulated E(mu) of the coat (eta >= 1, roughness in [0, 1])."""
     ri, rf, si, sf = _coords(roughness, eta)
@@ -174,7 +174,7 @@ def coat_albedo(mu, roughness, eta):
     return acc
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False)
+@kernel
 def coat_albedo_avg(roughness, eta):
     """E_avg = 2 integral E(mu) mu dmu of the same interpolant coat_albedo uses."""
     ri, rf, si, sf = _coords(roughness, eta)

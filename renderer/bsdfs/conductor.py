@@ -5,20 +5,19 @@ The reflectance follows the lobe's Fresnel mode (renderer.bsdfs FRESNEL_*): a co
 curve at the mirror's angle, cos = wo.z (Principled metallic, Metallic BSDF).
 """
 
-from numba import njit
-
 from renderer.bsdfs.fresnel import conductor_fresnel
+from renderer.kernels import kernel
 
 _ZERO3 = (0.0, 0.0, 0.0)
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False)
+@kernel
 def conductor_eval(color, roughness, ior, wo, wi):
     """A delta lobe has no density to evaluate."""
     return _ZERO3, 0.0
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False)
+@kernel
 def conductor_sample(color, roughness, ior, fresnel, tint, wo, u1, u2, u3):
     """Mirror direction; weight = the Fresnel reflectance. pdf is the discrete probability
     of the branch (1)."""

@@ -12,27 +12,26 @@ and renders match Cycles. The price is the usual one: the BSDF is not symmetric 
 swapping wo and wi across the interface, which a unidirectional path tracer never needs.
 """
 
-from numba import njit
-
 from renderer.bsdfs.fresnel import fresnel_dielectric
+from renderer.kernels import kernel
 
 _ZERO3 = (0.0, 0.0, 0.0)
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False)
+@kernel
 def dielectric_eval(color, roughness, ior, wo, wi):
     """Both branches are delta: no density to evaluate."""
     return _ZERO3, 0.0
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False)
+@kernel
 def dielectric_reflectance(ior, cos_o):
     """Fresnel reflectance seen from the side of `wo` (cos_o = wo.z, signed)."""
     eta = ior if cos_o >= 0.0 else 1.0 / ior
     return fresnel_dielectric(abs(cos_o), eta)[0]
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False)
+@kernel
 def dielectric_sample(color, roughness, ior, wo, u1, u2, u3):
     """Reflect with probability F, else refract. pdf = discrete probability of the branch.
 

@@ -2,12 +2,11 @@
 
 import math
 
-from numba import njit
-
 from renderer.bsdfs import FRESNEL_F82
+from renderer.kernels import inline_kernel, kernel
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False)
+@kernel
 def fresnel_dielectric(cos_i, eta):
     """Unpolarised Fresnel reflectance and the cosine of the refracted direction.
 
@@ -25,7 +24,7 @@ def fresnel_dielectric(cos_i, eta):
     return 0.5 * (r_s * r_s + r_p * r_p), cos_t
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False)
+@kernel
 def _f82_channel(cos_i, f0, tint):
     """One channel of Cycles' F82-tint curve (Kutz et al., "Novel aspects of the Adobe
     Standard Material"): Schlick's F0 + (1 - F0)(1 - cos)^5 minus b cos (1 - cos)^6, with b
@@ -38,7 +37,7 @@ def _f82_channel(cos_i, f0, tint):
     return min(max(f0 + (1.0 - f0) * s5 - b * cos_i * s5 * s, 0.0), 1.0)
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def conductor_fresnel(fresnel, color, tint, cos_i):
     """Reflectance (rgb) of a conductor lobe at cos_i = wo.h (see renderer.bsdfs FRESNEL_*)."""
     if fresnel == FRESNEL_F82:

@@ -10,8 +10,6 @@ returns zero). Plastic with a smooth coat is a mixture: its sample reports `is_d
 sample, so lobe_is_delta is False for it.
 """
 
-from numba import njit
-
 from renderer.bsdfs import (
     CONDUCTOR,
     DIELECTRIC,
@@ -27,11 +25,12 @@ from renderer.bsdfs.diffuse import diffuse_eval, diffuse_sample
 from renderer.bsdfs.plastic import plastic_eval, plastic_sample
 from renderer.bsdfs.rough_conductor import rough_conductor_eval, rough_conductor_sample
 from renderer.bsdfs.transparent import transparent_sample
+from renderer.kernels import inline_kernel, kernel
 
 _ZERO3 = (0.0, 0.0, 0.0)
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False)
+@kernel
 def lobe_is_delta(kind, roughness):
     if kind == DIELECTRIC or kind == CONDUCTOR or kind == TRANSPARENT:
         return True
@@ -40,7 +39,7 @@ def lobe_is_delta(kind, roughness):
     return False
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def lobe_eval(kind, color, roughness, ior, fresnel, tint, wo, wi):
     """(f, pdf) of one lobe; zero for delta lobes. `fresnel` and `tint` are the conductor
     lobes' Fresnel mode and edge tint (renderer.bsdfs FRESNEL_*); other lobes ignore them."""
@@ -60,7 +59,7 @@ def lobe_eval(kind, color, roughness, ior, fresnel, tint, wo, wi):
     return _ZERO3, 0.0
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def lobe_sample(kind, color, roughness, ior, fresnel, tint, wo, u1, u2, u3):
     """(wi, weight = f |cos| / pdf, pdf, is_delta) of one lobe.
 

@@ -24,10 +24,9 @@ Events of bsdf_sample:
     3 PASS_THROUGH  transparent lobe chosen or no lobes on this side: wi = -wo, not a bounce
 """
 
-from numba import njit
-
 from renderer.bsdfs import DIELECTRIC, FRESNEL_F82, PLASTIC, SIDE_BACK, SIDE_FRONT, TRANSPARENT
 from renderer.bsdfs.lobe import lobe_eval, lobe_sample
+from renderer.kernels import inline_kernel
 from renderer.kernels.vecmath import luminance, mul, scale
 
 EVENT_ABSORB = 0
@@ -42,17 +41,17 @@ L_KIND, L_WEIGHT, L_COLOR, L_ROUGH, L_IOR, L_SIDES, L_FRESNEL, L_TINT = 0, 1, 4,
 L_COLUMNS = 14
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def _present(sides, front):
     return (int(sides) & (SIDE_FRONT if front else SIDE_BACK)) != 0
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def _row3(a, j, c):
     return (float(a[j, c]), float(a[j, c + 1]), float(a[j, c + 2]))
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def _selection_weight(kind, weight, color, fresnel):
     if kind == DIELECTRIC or kind == PLASTIC:
         return max(luminance(weight), 0.0)
@@ -63,13 +62,13 @@ def _selection_weight(kind, weight, color, fresnel):
     return max(luminance(mul(weight, color)), 0.0)
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def _lobe_selection(lobes, j):
     return _selection_weight(int(lobes[j, L_KIND]), _row3(lobes, j, L_WEIGHT), _row3(lobes, j, L_COLOR),
                              int(lobes[j, L_FRESNEL]))
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def bsdf_has_lobes(mt, m, front):
     mats, lobes = mt
     start = mats[m, 0]
@@ -79,7 +78,7 @@ def bsdf_has_lobes(mt, m, front):
     return False
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def bsdf_eval(mt, m, front, wo, wi):
     """(f, pdf): f = sum_j weight_j f_j, pdf = sum_j P_j pdf_j over the lobes on this side."""
     mats, lobes = mt
@@ -103,7 +102,7 @@ def bsdf_eval(mt, m, front, wo, wi):
     return f, (pdf / total if total > 0.0 else 0.0)
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def bsdf_sample(mt, m, front, wo, u_sel, u1, u2, u3):
     """(wi, weight, pdf, event); see the module docstring for the events."""
     mats, lobes = mt

@@ -7,13 +7,12 @@ sampled with Heitz 2018, "Sampling the GGX Distribution of Visible Normals".
 
 import math
 
-from numba import njit
-
 from renderer.kernels import fastmath as fm
+from renderer.kernels import kernel
 from renderer.kernels.vecmath import cross, normalize
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False)
+@kernel
 def ggx_D(alpha, h):
     """Distribution of normals, normalised so that integral D(h) h.z dh = 1."""
     cos2 = h[2] * h[2]
@@ -24,7 +23,7 @@ def ggx_D(alpha, h):
     return a2 / (math.pi * d * d)
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False)
+@kernel
 def ggx_lambda(alpha, w):
     """Smith's Lambda for GGX: (-1 + sqrt(1 + alpha^2 tan^2 theta)) / 2."""
     cos2 = w[2] * w[2]
@@ -34,18 +33,18 @@ def ggx_lambda(alpha, w):
     return 0.5 * (math.sqrt(1.0 + a2_tan2) - 1.0)
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False)
+@kernel
 def ggx_G1(alpha, w):
     return 1.0 / (1.0 + ggx_lambda(alpha, w))
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False)
+@kernel
 def ggx_G2(alpha, wo, wi):
     """Height-correlated masking-shadowing (symmetric in wo, wi)."""
     return 1.0 / (1.0 + ggx_lambda(alpha, wo) + ggx_lambda(alpha, wi))
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False)
+@kernel
 def ggx_sample_visible_normal(alpha, wo, u1, u2):
     """A microfacet normal h with density D_wo(h) = G1(wo) max(0, wo.h) D(h) / wo.z (wo.z > 0)."""
     # Stretch wo so the GGX ellipsoid becomes the unit hemisphere.
@@ -73,7 +72,7 @@ def ggx_sample_visible_normal(alpha, wo, u1, u2):
     return normalize((alpha * nh[0], alpha * nh[1], max(0.0, nh[2])))
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False)
+@kernel
 def ggx_reflection_pdf(alpha, wo, wi):
     """Solid-angle pdf of wi = reflect(wo, h) with h from ggx_sample_visible_normal.
 
@@ -85,7 +84,7 @@ def ggx_reflection_pdf(alpha, wo, wi):
     return ggx_G1(alpha, wo) * ggx_D(alpha, h) / (4.0 * wo[2])
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False)
+@kernel
 def reflect(w, h):
     """Mirror w about h: 2 (w.h) h - w."""
     c = 2.0 * (w[0] * h[0] + w[1] * h[1] + w[2] * h[2])

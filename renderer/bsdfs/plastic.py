@@ -23,8 +23,6 @@ The layer's index is max(ior, 1/ior) (E_ss is looked up at most at index 4, its 
 """
 
 
-from numba import njit
-
 from renderer.bsdfs import SMOOTH_ROUGHNESS
 from renderer.bsdfs.coat_albedo import coat_albedo, coat_eta
 from renderer.bsdfs.fresnel import fresnel_dielectric
@@ -37,12 +35,13 @@ from renderer.bsdfs.microfacet import (
 )
 from renderer.bsdfs.spec_albedo import spec_albedo
 from renderer.bsdfs.warp import square_to_cosine_hemisphere
+from renderer.kernels import kernel
 from renderer.kernels.vecmath import INV_PI, normalize
 
 _ZERO3 = (0.0, 0.0, 0.0)
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False)
+@kernel
 def _coat_probability(color, e_o):
     """Chance of sampling the layer: its share of E(wo) + avg(color) (1 - E(wo))."""
     base = (color[0] + color[1] + color[2]) / 3.0 * (1.0 - e_o)
@@ -50,13 +49,13 @@ def _coat_probability(color, e_o):
     return e_o / total if total > 0.0 else 1.0
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False)
+@kernel
 def _layer_eta(ior):
     """The layer's relative index, >= 1 (the layer is seen from outside)."""
     return ior if ior >= 1.0 else 1.0 / max(ior, 1e-6)
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False)
+@kernel
 def layer_albedo(mu, roughness, eta):
     """max(Cycles' estimate E, the single-scattering E_ss) of the layer for wo.z = mu."""
     e = spec_albedo(mu, roughness, eta)
@@ -64,7 +63,7 @@ def layer_albedo(mu, roughness, eta):
     return min(max(e, e_ss, 0.0), 1.0)
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False)
+@kernel
 def plastic_eval(color, roughness, ior, wo, wi):
     if wo[2] <= 0.0 or wi[2] <= 0.0:
         return _ZERO3, 0.0
@@ -85,7 +84,7 @@ def plastic_eval(color, roughness, ior, wo, wi):
     return f, pdf
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False)
+@kernel
 def plastic_sample(color, roughness, ior, wo, u1, u2, u3):
     """u3 picks layer or base; (u1, u2) sample the chosen one. The weight uses the full
     mixture f and pdf (of the non-delta parts), so it equals eval's f cos / pdf."""

@@ -12,8 +12,6 @@ does not (it is darker by up to ~1/3 at roughness 1 and grazing view, and identi
 roughness).
 """
 
-from numba import njit
-
 from renderer.bsdfs.fresnel import conductor_fresnel
 from renderer.bsdfs.microfacet import (
     ggx_D,
@@ -23,12 +21,13 @@ from renderer.bsdfs.microfacet import (
     ggx_sample_visible_normal,
     reflect,
 )
+from renderer.kernels import kernel
 from renderer.kernels.vecmath import normalize, scale
 
 _ZERO3 = (0.0, 0.0, 0.0)
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False)
+@kernel
 def rough_conductor_eval(color, roughness, ior, fresnel, tint, wo, wi):
     if wo[2] <= 0.0 or wi[2] <= 0.0:
         return _ZERO3, 0.0
@@ -40,7 +39,7 @@ def rough_conductor_eval(color, roughness, ior, fresnel, tint, wo, wi):
     return scale(conductor_fresnel(fresnel, color, tint, cos_oh), f), ggx_reflection_pdf(alpha, wo, wi)
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False)
+@kernel
 def rough_conductor_sample(color, roughness, ior, fresnel, tint, wo, u1, u2, u3):
     """Visible-normal sampling; the weight f cos / pdf reduces to F(wo.h) G2 / G1(wo)."""
     if wo[2] <= 0.0:

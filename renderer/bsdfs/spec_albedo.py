@@ -32,23 +32,23 @@ import math
 import os
 
 import numpy as np
-from numba import njit
 
 from renderer.bsdfs.fresnel import fresnel_dielectric
 from renderer.bsdfs.microfacet import ggx_sample_visible_normal, reflect
+from renderer.kernels import inline_kernel, kernel
 
 N_NODES = 16  # per axis: roughness, mu, z
 _N_QUAD = 512  # midpoint visible-normal quadrature, _N_QUAD^2 points per node
 _TABLE_PATH = os.path.join(os.path.dirname(__file__), "spec_albedo.npz")
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False)
+@kernel
 def f0_from_eta(eta):
     r = (eta - 1.0) / (eta + 1.0)
     return r * r
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False)
+@kernel
 def node_params(x, y, z):
     """(roughness, mu, eta) at node (x, y, z), clamped as Cycles clamps them."""
     n1 = N_NODES - 1.0
@@ -63,7 +63,7 @@ def node_params(x, y, z):
     return rough, mu, (1.0 + root_f0) / (1.0 - root_f0)
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False)
+@kernel
 def remapped_fresnel_mean(rough, mu, eta, n):
     """s: mean of (F(wo.h) - F0) / (1 - F0), clamped to [0, 1], over visible normals h of
     wo (mu = wo.z), 0 where reflect(wo, h) is below the horizon; n x n midpoint quadrature."""
@@ -83,7 +83,7 @@ def remapped_fresnel_mean(rough, mu, eta, n):
     return min(max(acc / (n * n), 0.0), 1.0)
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False)
+@kernel
 def build_table(s, n_quad):
     """Fill s (N_NODES^3) with the node values, indexed [z, mu, roughness] like Cycles' table."""
     for k in range(N_NODES):
@@ -110,7 +110,7 @@ else:
     SPEC_S = _load_table()
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def _cell(x):
     """Cycles' lookup_table_read coordinates: lower node, upper node, weight of the upper."""
     x = min(max(x, 0.0), 1.0) * (N_NODES - 1)
@@ -118,7 +118,7 @@ def _cell(x):
     return i, min(i + 1, N_NODES - 1), x - i
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False)
+@kernel
 def remapped_fresnel_lookup(roughness, mu, eta):
     """s(roughness, mu, eta) read from the table with Cycles' trilinear interpolation."""
     x0, x1, tx = _cell(roughness)
@@ -131,7 +131,7 @@ def remapped_fresnel_lookup(roughness, mu, eta):
     return (1.0 - tz) * s0 + tz * s1
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False)
+@kernel
 def spec_albedo(mu, roughness, eta):
     """Cycles' estimated albedo E(mu) of the specular layer (eta >= 1, roughness in [0, 1])."""
     f0 = f0_from_eta(eta)

@@ -2,13 +2,12 @@
 
 import math
 
-from numba import njit
-
 from renderer.kernels import fastmath as fm
+from renderer.kernels import kernel
 from renderer.kernels.vecmath import INV_PI
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False)
+@kernel
 def square_to_cosine_hemisphere(u1, u2):
     """Cosine-weighted direction on the upper hemisphere: pdf = cos(theta) / pi.
 
@@ -22,6 +21,6 @@ def square_to_cosine_hemisphere(u1, u2):
     return (r * cos_phi, r * sin_phi, z)
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False)
+@kernel
 def cosine_hemisphere_pdf(cos_theta):
     return cos_theta * INV_PI if cos_theta > 0.0 else 0.0

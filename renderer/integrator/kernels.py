@@ -28,11 +28,11 @@ cfg (int64 array): see CFG_* indices.
 import math
 
 import numpy as np
-from numba import njit
 
 from ..bsdfs import TRANSPARENT
 from ..bsdfs.material import L_COLOR, L_KIND, L_SIDES, L_WEIGHT, bsdf_eval, bsdf_has_lobes, bsdf_sample
 from ..camera import camera_ray
+from ..kernels import inline_kernel, kernel
 from ..kernels.rng import path_key, uniform
 from ..kernels.vecmath import add, dot, madd, max3, mul, neg, normalize, onb, scale, sub, to_local, to_world
 from ..lights.sample import (
@@ -74,7 +74,7 @@ RAY_FAR = 1e30
 SHADOW_DIMS = 64  # random dimensions reserved for a shadow ray's own tracking through media
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def offset_origin(x, ng, direction):
     """Move x off its surface to the side `direction` leaves on (Embree has no tnear)."""
     eps = 1e-4 * (1.0 + max(abs(x[0]), max(abs(x[1]), abs(x[2]))))
@@ -83,7 +83,7 @@ def offset_origin(x, ng, direction):
     return madd(x, ng, eps)
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def power_heuristic(a, b):
     a2 = a * a
     b2 = b * b
@@ -92,20 +92,20 @@ def power_heuristic(a, b):
     return a2 / (a2 + b2)
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def _vec(a, i):
     """Row i of an (n, 3) array as a float64 3-tuple (float() would keep float32 in numba)."""
     return (np.float64(a[i, 0]), np.float64(a[i, 1]), np.float64(a[i, 2]))
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def _put(a, i, v):
     a[i, 0] = v[0]
     a[i, 1] = v[1]
     a[i, 2] = v[2]
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False)
+@kernel
 def start_paths(ps, pixel_of_pid, cam, width, height, seed, first, n, sample_base, init_stack):
     """Camera rays for linear sample indices first .. first + n - 1 of a pass: index k is
     pixel k % (width * height), sample sample_base + k // (width * height)."""
@@ -136,7 +136,7 @@ def start_paths(ps, pixel_of_pid, cam, width, height, seed, first, n, sample_bas
         pixel_of_pid[i] = pixel
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def _emit_shadow(sh, s, x, wi, dist, contrib, pid, key, dim, stack, gap):
     _put(sh.o, s, x)
     _put(sh.d, s, wi)
@@ -151,7 +151,7 @@ def _emit_shadow(sh, s, x, wi, dist, contrib, pid, key, dim, stack, gap):
     sh.alive[s] = 1
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def _light_sample_weight(lt, light, pdf_light, pdf_scatter, is_delta, sampling):
     """MIS weight of a light sample; pdf_light already includes the selection probability."""
     if is_delta or sampling == SAMPLING_NEE:
@@ -159,7 +159,7 @@ def _light_sample_weight(lt, light, pdf_light, pdf_scatter, is_delta, sampling):
     return power_heuristic(pdf_light, pdf_scatter)
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def _hit_weight(mis_pdf, pdf_light, sampling):
     """MIS weight of emission found by BSDF/phase sampling (mis_pdf 0 = camera or delta)."""
     if mis_pdf <= 0.0 or sampling == SAMPLING_BSDF:
@@ -169,7 +169,7 @@ def _hit_weight(mis_pdf, pdf_light, sampling):
     return power_heuristic(mis_pdf, pdf_light)
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def _medium_nee(ps, i, md, lt, cfg, x, d, beta, key, dim, sh, s, light, lp, weight):
     """Next-event estimation from medium point x (with path weight `weight` to reach it)."""
     pmf = lt[7]
@@ -189,7 +189,7 @@ def _medium_nee(ps, i, md, lt, cfg, x, d, beta, key, dim, sh, s, light, lp, weig
     return s + 1, dim + SHADOW_DIMS
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def _russian_roulette(ps, i, key, dim, rr_depth):
     """Survive with probability max(throughput) (capped at 1) after rr_depth bounces."""
     if ps.depth[i] < rr_depth:
@@ -204,7 +204,7 @@ def _russian_roulette(ps, i, key, dim, rr_depth):
     return True, dim
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False)
+@kernel
 def shade_media(n, ps, prim, lt, md, cfg, L, sh):
     """The participating media along each live path's segment [0, hit): emission, the
     next-event vertex, free-flight sampling. A path that scatters gets its next ray here
@@ -288,7 +288,7 @@ def shade_media(n, ps, prim, lt, md, cfg, L, sh):
     return s
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False)
+@kernel
 def shade_surface(n, ps, prim, bu, bv, geo, mt, lt, env_light, sun_rows, cfg, L, sh, s):
     """Shade the closest hits of paths 0..n-1 with alive == 1 (prim -1 = escaped; ps.tmax
     holds the hit distance): emission, next-event estimation, BSDF sampling, Russian
@@ -420,7 +420,7 @@ def shade_surface(n, ps, prim, bu, bv, geo, mt, lt, env_light, sun_rows, cfg, L,
     return s
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def _shading_normal(geo, p, b0, b1, b2, ng):
     sn0 = _vec(geo.sn[p], 0)
     sn1 = _vec(geo.sn[p], 1)
@@ -432,7 +432,7 @@ def _shading_normal(geo, p, b0, b1, b2, ng):
     return n
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def _spawn(ps, i, x, ng, direction):
     """Next ray of path i from surface point x: origin pushed off the surface, the push
     remembered as the gap media integrate over."""
@@ -443,7 +443,7 @@ def _spawn(ps, i, x, ng, direction):
     ps.gap[i] = max(0.0, dot(sub(o, x), direction))
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def _update_stack(ps, i, geo, p, front):
     med = geo.medium[p]
     if med >= 0:
@@ -453,7 +453,7 @@ def _update_stack(ps, i, geo, p, front):
             stack_remove(ps.stack[i], med)
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def _cross_interface(ps, i, geo, p, front, x, ng, d, beta):
     """Continue straight through the surface at x, entering or leaving its medium."""
     _update_stack(ps, i, geo, p, front)
@@ -466,7 +466,7 @@ def _cross_interface(ps, i, geo, p, front, x, ng, d, beta):
     ps.alive[i] = 1
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False)
+@kernel
 def shadow_media(count, sh, md, cfg):
     """Multiply each shadow ray's contribution by the transmittance of its medium stack
     over its whole length (used when no interface can lie on a shadow ray, so the stack is
@@ -483,7 +483,7 @@ def shadow_media(count, sh, md, cfg):
         _put(sh.contrib, s, mul(_vec(sh.contrib, s), tr))
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False)
+@kernel
 def resolve_shadows(count, sh, occluded, L):
     """Add the contributions of shadow rays that reached their light."""
     for s in range(count):
@@ -494,7 +494,7 @@ def resolve_shadows(count, sh, occluded, L):
             L[pid, 2] += sh.contrib[s, 2]
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False)
+@kernel
 def walk_shadows(count, sh, prim, thit, remaining, geo, mt, md, cfg, L):
     """One step of shadow rays that may pass interfaces. thit is the hit distance where
     prim >= 0; remaining is each ray's length left to its light. A ray that reaches its end
@@ -547,7 +547,7 @@ def walk_shadows(count, sh, prim, thit, remaining, geo, mt, md, cfg, L):
         sh.alive[s] = 1
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def _transparency(mt, m, front):
     """How much light passes straight through material m from this side: 1 for a surface
     with no lobes (an interface), the transparent lobes' weight*color otherwise."""
@@ -564,7 +564,7 @@ def _transparency(mt, m, front):
     return (min(r, 1.0), min(g, 1.0), min(b, 1.0))
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False)
+@kernel
 def compact_paths(n, ps):
     """Move live paths to rows 0..k-1 (stable) and return k."""
     k = 0
@@ -593,7 +593,7 @@ def compact_paths(n, ps):
     return k
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False)
+@kernel
 def compact_shadows(n, sh, remaining):
     """Keep live shadow rays (rows 0..k-1); `remaining` (S,) float32 holds each ray's length
     left to its light and moves along."""
@@ -618,7 +618,7 @@ def compact_shadows(n, sh, remaining):
     return k
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False)
+@kernel
 def splat(n, L, pixel_of_pid, film_sum, film_sq, film_n, film_nonfinite):
     """Add paths 0..n-1 of the batch to the film (per-pixel sum, sum of squares, count).
     A non-finite path value (a bug, never expected) is counted and added as 0, so one bad

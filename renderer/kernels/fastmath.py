@@ -20,8 +20,10 @@ subnormals) go to libm, so behaviour there is libm's.
 
 import math
 
-from numba import njit, types
+from numba import types
 from numba.extending import intrinsic
+
+from renderer.kernels import inline_kernel
 
 LN2_HI = 6.93147180369123816490e-01  # ln 2 rounded to 32 significant bits: k * LN2_HI is exact
 LN2_LO = 1.90821492927058770002e-10  # ln 2 - LN2_HI
@@ -60,7 +62,7 @@ def _bits_from_f64(typingctx, x):
     return types.int64(types.float64), codegen
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def log(x):
     """Natural log of x > 0. x = m 2^e with m in [sqrt(1/2), sqrt(2)); with f = (m - 1) /
     (m + 1), log m = 2 atanh f = 2 (f + f^3/3 + ... + f^19/19) (|f| <= 0.172, next term
@@ -88,7 +90,7 @@ def log(x):
     return e * LN2_HI + (log_m + e * LN2_LO)
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def log1p(x):
     """log(1 + x) for x > -1, accurate for small x: with u = fl(1 + x), log1p(x) =
     log(u) x / (u - 1) cancels the rounding of 1 + x (Goldberg 1991, Theorem 4)."""
@@ -98,7 +100,7 @@ def log1p(x):
     return log(u) * (x / (u - 1.0))
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def _atan_series(w):
     """atan(w) for |w| <= tan(pi/16) = 0.199: w - w^3/3 + ... - w^23/23 (next term
     < 7e-18 relative)."""
@@ -117,7 +119,7 @@ def _atan_series(w):
     return w + w * s * p
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def _atan_unit(z):
     """atan(z) for z in [0, 1]: atan z = c + atan((z - tan c) / (1 + z tan c)) with c the
     multiple of pi/8 nearest atan z, which leaves |argument| <= tan(pi/16)."""
@@ -128,7 +130,7 @@ def _atan_unit(z):
     return math.pi / 4.0 + _atan_series((z - 1.0) / (1.0 + z))
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def atan2(y, x):
     """The angle of (x, y) in [-pi, pi], as math.atan2 for finite arguments (signed zeros
     aside: atan2(+-0, -0) gives +-pi only through libm). Infinite or NaN arguments go to libm."""
@@ -146,7 +148,7 @@ def atan2(y, x):
     return -a if y < 0.0 else a
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def sincos(x):
     """(sin x, cos x). x = q pi/2 + r with |r| <= pi/4 (two-part pi/2, exact for |q| < 2^20);
     sin r to r^15/15! and cos r to r^16/16! (next terms < 5e-17). |x| >= 1e5 and NaN go to

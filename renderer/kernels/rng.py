@@ -8,7 +8,8 @@ as a counter-based generator).
 """
 
 import numpy as np
-from numba import njit
+
+from renderer.kernels import inline_kernel, kernel
 
 _GOLDEN = np.uint64(0x9E3779B97F4A7C15)
 _M1 = np.uint64(0xBF58476D1CE4E5B9)
@@ -20,7 +21,7 @@ _S40 = np.uint64(40)
 _INV_2_24 = 1.0 / 16777216.0
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def mix64(x):
     """splitmix64 finaliser: a bijective avalanche on uint64."""
     x = (x ^ (x >> _S30)) * _M1
@@ -28,7 +29,7 @@ def mix64(x):
     return x ^ (x >> _S31)
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False)
+@kernel
 def path_key(seed, pixel, sample):
     """Key of one path: a hash of (seed, pixel index, sample index)."""
     k = mix64(np.uint64(seed) * _GOLDEN + np.uint64(1))
@@ -36,7 +37,7 @@ def path_key(seed, pixel, sample):
     return mix64(k ^ (np.uint64(sample) * _M1 + _GOLDEN))
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def uniform(key, dim):
     """Uniform float in [0, 1) for dimension `dim` of the path with `key`.
 

@@ -13,9 +13,8 @@ chosen point (equiangular sampling) before the connection is made:
 
 import math
 
-from numba import njit
-
 from ..kernels import fastmath as fm
+from ..kernels import inline_kernel
 from ..kernels.vecmath import INV_4PI, add, cross, dot, length, normalize, onb, scale, sub, to_world
 from .spherical_triangle import sample_spherical_triangle, spherical_triangle, use_solid_angle
 from .table import POINT, SPOT, SUN, TRIANGLE
@@ -23,7 +22,7 @@ from .table import POINT, SPOT, SUN, TRIANGLE
 SOLID_ANGLE_GATE = 0.05  # sr; see _near
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def pick_light(cdf, u):
     """Row whose cdf interval holds u (binary search); -1 when there are no lights."""
     n = cdf.shape[0] - 1
@@ -39,13 +38,13 @@ def pick_light(cdf, u):
     return lo
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def light_has_point(lt, light):
     k = lt[0][light]
     return k == TRIANGLE or k == POINT or k == SPOT
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def light_point(lt, light, u1, u2):
     """A point on the light, uniform by area for triangles; the position of point and spot
     lights; the origin for sun and environment (which have no point)."""
@@ -61,7 +60,7 @@ def light_point(lt, light, u1, u2):
             p[2] + b1 * vec_a[light, 2] + b2 * vec_b[light, 2])
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def _smoothstep(x):
     if x <= 0.0:
         return 0.0
@@ -70,7 +69,7 @@ def _smoothstep(x):
     return x * x * (3.0 - 2.0 * x)
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def spot_attenuation(axis, cos_outer, blend_width, wi_from_light):
     c = dot(axis, wi_from_light)
     if c <= cos_outer:
@@ -80,7 +79,7 @@ def spot_attenuation(axis, cos_outer, blend_width, wi_from_light):
     return _smoothstep((c - cos_outer) / blend_width)
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def _triangle(lt, light):
     pos, vec_a, vec_b = lt[1], lt[2], lt[3]
     p0 = (float(pos[light, 0]), float(pos[light, 1]), float(pos[light, 2]))
@@ -89,7 +88,7 @@ def _triangle(lt, light):
     return p0, add(p0, e1), add(p0, e2)
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def _near(x, p0, p1, p2):
     """Whether the triangle light p0 p1 p2 looks big from x: its solid angle estimated from the
     centroid, A |cos| / r^2, at least SOLID_ANGLE_GATE. Far triangles keep area sampling,
@@ -103,7 +102,7 @@ def _near(x, p0, p1, p2):
     return abs(dot(n2, d)) >= 2.0 * SOLID_ANGLE_GATE * r2 * math.sqrt(r2)
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def _connect_direction(lt, light, x, p0, p1, p2, wi, omega, c):
     """connect_light for a triangle sampled uniformly in solid angle (pdf 1 / omega)."""
     n = normalize(cross(sub(p1, p0), sub(p2, p0)))
@@ -117,7 +116,7 @@ def _connect_direction(lt, light, x, p0, p1, p2, wi, omega, c):
     return wi, dist, c, 1.0 / omega, False
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def connect_light(lt, light, lp, x, u1, u2):
     """Connect shading point x to light `light` (at point lp for lights that have one).
 
@@ -179,7 +178,7 @@ def connect_light(lt, light, lp, x, u1, u2):
     return (r * cos_phi, r * sin_phi, z), 1e30, c, INV_4PI, False
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def escaped_radiance(lt, env_light, sun_rows, d):
     """Radiance arriving along direction d from infinity (environment and sun discs), and
     the light-sampling pdf of that direction including selection probabilities (for MIS)."""
@@ -201,7 +200,7 @@ def escaped_radiance(lt, env_light, sun_rows, d):
     return (r, g, b), pdf
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def triangle_light_pdf(lt, light, x, p, cos_l):
     """Solid-angle pdf, with selection, of light-sampling point p on triangle light `light`
     from x, where cos_l is the cosine at the light."""

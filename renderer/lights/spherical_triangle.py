@@ -20,21 +20,20 @@ sampling and the MIS weights of emitters hit by BSDF sampling always agree.
 
 import math
 
-from numba import njit
-
 from ..kernels import fastmath as fm
+from ..kernels import inline_kernel
 from ..kernels.vecmath import cross, dot, length, madd, scale, sub
 
 MIN_SOLID_ANGLE = 1e-4  # steradians
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def _unit(v):
     n = length(v)
     return scale(v, 1.0 / n) if n > 0.0 else (0.0, 0.0, 0.0)
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def spherical_triangle(x, p0, p1, p2):
     """(omega, a, b, c): the solid angle (sr) subtended at x by the triangle p0 p1 p2 (0 when
     x is in its plane, outside it) and the unit vectors from x to its vertices."""
@@ -45,23 +44,23 @@ def spherical_triangle(x, p0, p1, p2):
     return 2.0 * fm.atan2(triple, 1.0 + dot(a, b) + dot(b, c) + dot(c, a)), a, b, c
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def solid_angle(x, p0, p1, p2):
     return spherical_triangle(x, p0, p1, p2)[0]
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def use_solid_angle(omega):
     return omega >= MIN_SOLID_ANGLE and math.isfinite(omega)
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def _orthogonal_unit(v, axis):
     """The unit component of v orthogonal to the unit vector axis."""
     return _unit(madd(v, axis, -dot(v, axis)))
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def sample_direction(x, p0, p1, p2, omega, u1, u2):
     """A unit direction from x toward the triangle, uniform in solid angle (pdf 1 / omega,
     omega = solid_angle(x, p0, p1, p2))."""
@@ -69,7 +68,7 @@ def sample_direction(x, p0, p1, p2, omega, u1, u2):
     return sample_spherical_triangle(a, b, c, omega, u1, u2)
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def sample_spherical_triangle(a, b, c, omega, u1, u2):
     """sample_direction given the unit vertex directions a, b, c and the solid angle."""
     # Interior angle alpha at vertex a, between the great circles ab and ac.

@@ -31,8 +31,8 @@ to an empty one: 0.2 instead of 0.5 of its emission over the half voxel between 
 import math
 
 import numpy as np
-from numba import njit
 
+from renderer.kernels import inline_kernel, kernel
 from renderer.media.cie1931 import CIE_1931_XYZ, CIE_LAMBDA_MIN, CIE_LAMBDA_STEP
 
 T_MIN = 800.0
@@ -70,7 +70,7 @@ def _table() -> np.ndarray:
 BLACKBODY_TABLE = _table()  # (TABLE_SIZE, 3), row i at 1/T = 1/T_MIN + i (1/T_MAX - 1/T_MIN)/(N-1)
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def blackbody_rgb(temperature):
     """Linear Rec.709 colour of a blackbody at `temperature` kelvin, luminance 1."""
     t = min(max(temperature, T_MIN), T_MAX)
@@ -82,7 +82,7 @@ def blackbody_rgb(temperature):
     return (a[0] + (b[0] - a[0]) * f, a[1] + (b[1] - a[1]) * f, a[2] + (b[2] - a[2]) * f)
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False)
+@kernel
 def blackbody_emission(temperature, intensity):
     """Cycles' Principled Volume blackbody term (see the module docstring); 0 when b <= 0."""
     if intensity <= 0.0:

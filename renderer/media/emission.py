@@ -13,15 +13,14 @@ length). As in Cycles' Principled Volume, emission is NOT multiplied by density:
     renderer.media.blackbody).
 """
 
-from numba import njit
-
+from renderer.kernels import inline_kernel, kernel
 from renderer.media.compile import GRID_BLACKBODY, GRID_FLAME
 from renderer.media.grid import grid_lookup, grid_lookup3, to_unit_point
 from renderer.media.stack import EMPTY, MAX_STACK
 from renderer.media.table import emission, emits, grid_offset, is_grid
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def medium_emission(mt, m, p):
     """Emission of medium m at world point p (per unit length, RGB)."""
     if not emits(mt, m):
@@ -41,7 +40,7 @@ def medium_emission(mt, m, p):
     return e
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False)
+@kernel
 def stack_emission(mt, stack, p):
     """Emission of the whole stack at p: the entries' emission added."""
     e0 = e1 = e2 = 0.0

@@ -20,9 +20,8 @@ the angle range is too small to invert accurately both fall back to uniform on [
 """
 
 
-from numba import njit
-
 from renderer.kernels import fastmath as fm
+from renderer.kernels import inline_kernel
 from renderer.kernels.vecmath import dot, length, madd, sub
 
 MIN_THETA = 1e-9
@@ -30,7 +29,7 @@ D_FLOOR = 1e-7  # relative to |delta|
 D_MIN = 1e-12  # world units
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def equiangular_frame(o, d, light_p, tmax):
     """(delta, D, theta_d) of the segment [0, tmax) toward light_p.
 
@@ -47,7 +46,7 @@ def equiangular_frame(o, d, light_p, tmax):
     return delta, big_d, theta_d
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def frame_pdf(frame, tmax, t):
     """Equiangular pdf of t for a frame from equiangular_frame."""
     delta, big_d, theta_d = frame
@@ -57,7 +56,7 @@ def frame_pdf(frame, tmax, t):
     return big_d / (theta_d * (big_d * big_d + x * x))
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def frame_sample(frame, tmax, u):
     """t in [0, tmax) drawn from the frame's equiangular pdf."""
     delta, big_d, theta_d = frame
@@ -71,12 +70,12 @@ def frame_sample(frame, tmax, u):
     return min(max((delta * delta + big_d * big_d) * sin_phi / denom, 0.0), tmax)
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def equiangular_pdf(o, d, light_p, tmax, t):
     return frame_pdf(equiangular_frame(o, d, light_p, tmax), tmax, t)
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def equiangular_sample(o, d, light_p, tmax, u):
     """(t, pdf) with t in [0, tmax)."""
     frame = equiangular_frame(o, d, light_p, tmax)

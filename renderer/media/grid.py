@@ -7,13 +7,12 @@ inside [0, 1]^3 (so a constant grid is exactly a homogeneous medium and a 1x1x1 
 homogeneous box); outside the box every grid reads 0. Homogeneous media have density 1.
 """
 
-from numba import njit
-
+from renderer.kernels import inline_kernel
 from renderer.media.compile import GRID_DENSITY, P_TO_UNIT
 from renderer.media.table import grid_dim, grid_offset, is_grid
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def to_unit_point(mt, m, p):
     a = mt.params  # indexed in 2-D: a row view would cost a reference-count round trip
     k = P_TO_UNIT
@@ -24,7 +23,7 @@ def to_unit_point(mt, m, p):
     )
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def to_unit_vector(mt, m, v):
     a = mt.params
     k = P_TO_UNIT
@@ -35,7 +34,7 @@ def to_unit_vector(mt, m, v):
     )
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def _axis(x, n):
     """Lower voxel index and weight of the upper one for unit coordinate x on n voxels."""
     f = x * n - 0.5
@@ -47,7 +46,7 @@ def _axis(x, n):
     return i, f - i
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def _cell(mt, m, which, u, channels):
     """Where the trilinear stencil of grid `which` (values of `channels` floats interleaved)
     sits at unit-cube point u: (base index, steps di, dj, dk, upper weights fx, fy, fz).
@@ -66,7 +65,7 @@ def _cell(mt, m, which, u, channels):
     return b, di, dj, dk, fx, fy, fz
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def _trilinear(data, b, di, dj, dk, fx, fy, fz):
     """Trilinear mix of the 8 values at b, b + di, b + dj, ... with upper weights fx, fy, fz."""
     c00 = data[b] * (1.0 - fx) + data[b + di] * fx
@@ -78,12 +77,12 @@ def _trilinear(data, b, di, dj, dk, fx, fy, fz):
     return c0 * (1.0 - fz) + c1 * fz
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def _inside(u):
     return 0.0 <= u[0] <= 1.0 and 0.0 <= u[1] <= 1.0 and 0.0 <= u[2] <= 1.0
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def grid_lookup(mt, m, which, u):
     """Trilinear value of grid `which` of medium m at unit-cube point u (0 outside)."""
     if not _inside(u):
@@ -92,7 +91,7 @@ def grid_lookup(mt, m, which, u):
     return _trilinear(mt.grid_data, b, di, dj, dk, fx, fy, fz)
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def grid_lookup3(mt, m, which, u):
     """Trilinear RGB value of three-channel grid `which` (channels interleaved, see
     compile.GRID_BLACKBODY) of medium m at unit-cube point u ((0, 0, 0) outside)."""
@@ -107,7 +106,7 @@ def grid_lookup3(mt, m, which, u):
     )
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def medium_density(mt, m, p):
     """Density of medium m at world point p: 1 for homogeneous media."""
     if not is_grid(mt, m):

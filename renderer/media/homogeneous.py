@@ -6,15 +6,14 @@ homogeneous medium with sigma = sum of the entries' sigma.
 
 import math
 
-from numba import njit
-
 from renderer.kernels import fastmath as fm
+from renderer.kernels import inline_kernel
 from renderer.media.spectral import pick_channel
 from renderer.media.stack import EMPTY, MAX_STACK
 from renderer.media.table import emission, emits, sigma_a, sigma_s
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def stack_sigma(mt, stack):
     """(sigma_a, sigma_s) summed over the stack; valid for stacks without grids."""
     a0 = a1 = a2 = 0.0
@@ -34,7 +33,7 @@ def stack_sigma(mt, stack):
     return (a0, a1, a2), (s0, s1, s2)
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def stack_constant_emission(mt, stack):
     """Emission summed over the stack's emitting entries (homogeneous entries only)."""
     e0 = e1 = e2 = 0.0
@@ -50,20 +49,20 @@ def stack_constant_emission(mt, stack):
     return (e0, e1, e2)
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def optical_depth(sigma, t):
     # Written out so that sigma = 0 over an infinite segment is 0, not 0 * inf = NaN.
     return sigma * t if sigma > 0.0 else 0.0
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def _exp_neg(x):
     # exp(-x) for x >= 0; past 745 the result is 0 anyway, and libm's underflow path (errno)
     # costs five times a plain exp: infinite segments (rays leaving into world fog) hit it.
     return math.exp(-x) if x < 745.0 else 0.0
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def beer(sigma_t, t):
     """Transmittance exp(-sigma_t t) per channel (one exp for a grey medium)."""
     if sigma_t[0] == sigma_t[1] and sigma_t[1] == sigma_t[2]:
@@ -76,14 +75,14 @@ def beer(sigma_t, t):
     )
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def _one_minus(tr, x):
     # 1 - exp(-x) from tr = exp(-x): exact enough unless x is small, where the difference
     # cancels; there expm1 keeps full precision (and 1 - tr would be 0 below x ~ 1e-16).
     return 1.0 - tr if x > 0.1 else -math.expm1(-x)
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def segment(mt, stack, tmax):
     """Constants of a homogeneous stack over [0, tmax), computed once per path segment and
     shared by the next-event vertex and free-flight sampling (exp dominated the medium
@@ -99,7 +98,7 @@ def segment(mt, stack, tmax):
     return sa, ss, st, tr, miss
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def _transmitted_length(sigma, t):
     # integral_0^t exp(-sigma s) ds = (1 - exp(-sigma t)) / sigma, written with expm1 so
     # that it tends to t without cancellation as sigma t -> 0 (and is exactly t at 0).
@@ -108,7 +107,7 @@ def _transmitted_length(sigma, t):
     return t
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def emission_integral(emission, sigma_t, t):
     """integral_0^t exp(-sigma_t s) emission ds per channel (constant emission)."""
     return (
@@ -118,7 +117,7 @@ def emission_integral(emission, sigma_t, t):
     )
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def sample_exponential(sigma, u):
     """Free-flight distance with density sigma exp(-sigma t); inf when sigma is 0.
     u < 1 (24-bit uniforms) keeps -log1p(-u) <= 16.7, so t <= 16.7 / sigma."""
@@ -127,7 +126,7 @@ def sample_exponential(sigma, u):
     return math.inf
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def sample_truncated(sigma, tmax, miss, u):
     """Distance on [0, tmax) with density sigma exp(-sigma t) / (1 - exp(-sigma tmax)), given
     miss = 1 - exp(-sigma tmax) (see segment)."""
@@ -136,7 +135,7 @@ def sample_truncated(sigma, tmax, miss, u):
     return u * tmax
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def truncated_pdf(sigma, tmax, miss, tr_t):
     """Density of sample_truncated at t, given miss = 1 - exp(-sigma tmax) and
     tr_t = exp(-sigma t)."""
@@ -145,7 +144,7 @@ def truncated_pdf(sigma, tmax, miss, tr_t):
     return 1.0 / tmax
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def free_flight_segment(sigma_s, st, tr_end, tmax, p, u_channel, u_distance):
     """Sample the next collision on [0, tmax) in a homogeneous medium by spectral MIS, given
     sigma_t = st and tr_end = T(tmax) (see segment).

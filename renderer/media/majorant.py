@@ -15,8 +15,8 @@ costs one step per coarse cell and no density lookups. Cell values are padded by
 import math
 
 import numpy as np
-from numba import njit
 
+from renderer.kernels import inline_kernel, kernel
 from renderer.media.grid import to_unit_point, to_unit_vector
 from renderer.media.table import maj_dim, maj_offset
 
@@ -37,14 +37,14 @@ DDA_SIZE = 19
 BEFORE, INSIDE, PAST = 0.0, 1.0, 2.0
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def _set_piece(row, end, maj, emits):
     row[DDA_END] = end
     row[DDA_MAJ] = maj
     row[DDA_EMITS] = emits
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def _load_cell(mt, row):
     """Current piece = the current cell, up to its first crossing or the box exit."""
     m = int(row[DDA_MEDIUM])
@@ -58,7 +58,7 @@ def _load_cell(mt, row):
     _set_piece(row, end, np.float64(mt.maj_data[cell, 0]), np.float64(mt.maj_data[cell, 1]))
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def _next_axis(row):
     """Axis whose cell boundary the ray crosses first."""
     a = 0
@@ -69,7 +69,7 @@ def _next_axis(row):
     return a
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False)
+@kernel
 def _merge_empty(mt, row):
     """If the current cell is empty (no density, no emission), extend the piece over the
     following empty cells, so that a sparse grid's empty space is one zero-majorant piece
@@ -98,7 +98,7 @@ def _merge_empty(mt, row):
     row[DDA_END] = min(row[DDA_NEXT], row[DDA_NEXT + 1], row[DDA_NEXT + 2], row[DDA_EXIT])
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False)
+@kernel
 def dda_init(mt, m, o, d, t_start, row):
     """Start walking grid medium m along o + t d from t_start."""
     uo = to_unit_point(mt, m, o)
@@ -149,7 +149,7 @@ def dda_init(mt, m, o, d, t_start, row):
         _merge_empty(mt, row)
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False)
+@kernel
 def dda_advance(mt, row):
     """Move to the piece after the current one."""
     if row[DDA_STATE] == BEFORE:

@@ -15,15 +15,14 @@ The integrator multiplies the weight by phase * light / light_pdf and the shadow
 transmittance. The vertex is independent of where the path continues.
 """
 
-from numba import njit
-
+from renderer.kernels import inline_kernel
 from renderer.kernels.rng import uniform
 from renderer.media.equiangular import equiangular_frame, frame_pdf, frame_sample
 from renderer.media.homogeneous import beer, sample_truncated, segment, truncated_pdf
 from renderer.media.spectral import channel_probabilities, pick_channel
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def nee_vertex(mt, stack, o, d, tmax, light_p, throughput, key, dim, use_equiangular, uniform_channel):
     """(t, weight3, dim) for a HOMOGENEOUS stack: a point on [0, tmax) and its weight
     T(t) sigma_s / pdf(t). Consumes 3 dimensions. Plain truncated free flight when
@@ -32,7 +31,7 @@ def nee_vertex(mt, stack, o, d, tmax, light_p, throughput, key, dim, use_equiang
                          uniform_channel)
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def nee_vertex_on(seg, o, d, tmax, light_p, throughput, key, dim, use_equiangular, uniform_channel):
     """nee_vertex given the segment's constants (homogeneous.segment), so that the path's
     own free-flight sampling on the same segment can reuse them."""

@@ -10,12 +10,12 @@ is bounded by albedo / p_c.
 
 import math
 
-from numba import njit
+from renderer.kernels import inline_kernel
 
 THIRD = 1.0 / 3.0
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def channel_probabilities(throughput, uniform_channel):
     """(p0, p1, p2): proportional to throughput, or 1/3 each when asked or when the
     throughput is zero / not finite."""
@@ -29,7 +29,7 @@ def channel_probabilities(throughput, uniform_channel):
     return (THIRD, THIRD, THIRD)
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def pick_channel(p, u):
     """Channel c with probability p[c]; never a channel with p[c] == 0."""
     if u < p[0]:

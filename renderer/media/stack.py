@@ -7,20 +7,19 @@ the same medium add their coefficients, as two Cycles objects do); removing take
 one occurrence.
 """
 
-from numba import njit
-
+from renderer.kernels import inline_kernel
 from renderer.media.table import emits, is_grid
 
 MAX_STACK = 4
 EMPTY = -1
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def stack_is_empty(stack):
     return stack[0] == EMPTY
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def stack_size(stack):
     n = 0
     while n < MAX_STACK and stack[n] != EMPTY:
@@ -28,7 +27,7 @@ def stack_size(stack):
     return n
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def stack_has_grid(mt, stack):
     for i in range(MAX_STACK):
         m = stack[i]
@@ -39,7 +38,7 @@ def stack_has_grid(mt, stack):
     return False
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def stack_has_emission(mt, stack):
     for i in range(MAX_STACK):
         m = stack[i]
@@ -50,7 +49,7 @@ def stack_has_emission(mt, stack):
     return False
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def stack_push(stack, m):
     """Add medium m in place. A full stack drops it (returns False): a fifth overlapping
     medium is ignored rather than crashing a render."""
@@ -61,7 +60,7 @@ def stack_push(stack, m):
     return False
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def stack_remove(stack, m):
     """Remove the last occurrence of medium m in place, keeping the slots packed.
     Returns False (and changes nothing) when m is not on the stack."""

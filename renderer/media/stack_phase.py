@@ -11,8 +11,7 @@ chromatic entries of different g overlap they differ, which is why sampling retu
 weight f / pdf per channel instead of assuming 1.
 """
 
-from numba import njit
-
+from renderer.kernels import inline_kernel
 from renderer.kernels.vecmath import dot, luminance
 from renderer.media.grid import medium_density
 from renderer.media.stack import EMPTY, MAX_STACK
@@ -20,7 +19,7 @@ from renderer.media.table import phase_g, sigma_s
 from renderer.phase.hg import hg_eval, hg_sample
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def _mixture(mt, stack, p, cos_theta):
     """(f3, pdf) of the stack's phase mixture at p for cos_theta = dot(d, wi)."""
     if stack[1] == EMPTY:  # one entry: no density lookups needed
@@ -57,7 +56,7 @@ def _mixture(mt, stack, p, cos_theta):
     return (f0 / n0 if n0 > 0.0 else pdf, f1 / n1 if n1 > 0.0 else pdf, f2 / n2 if n2 > 0.0 else pdf), pdf
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def _pick_entry(mt, stack, p, u):
     """Entry chosen with probability proportional to lum(sigma_s(p))."""
     if stack[1] == EMPTY:
@@ -86,7 +85,7 @@ def _pick_entry(mt, stack, p, u):
     return last
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def sample_phase(mt, stack, p, d, u_sel, u1, u2):
     """Scatter at world point p for propagation direction d: (wi, weight3, pdf).
 
@@ -101,13 +100,13 @@ def sample_phase(mt, stack, p, d, u_sel, u1, u2):
     return wi, (f[0] / pdf, f[1] / pdf, f[2] / pdf), pdf
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def phase_eval(mt, stack, p, d, wi):
     """(f3, pdf) of scattering from propagation direction d into wi at p (for NEE / MIS)."""
     return _mixture(mt, stack, p, dot(d, wi))
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def phase_pdf(mt, stack, p, d, wi):
     """Sampling pdf of sample_phase for direction wi (per steradian)."""
     return _mixture(mt, stack, p, dot(d, wi))[1]

@@ -5,8 +5,8 @@ so values are widened on the way out) or int.
 """
 
 import numpy as np
-from numba import njit
 
+from renderer.kernels import inline_kernel
 from renderer.media.compile import (
     I_GRID_DIMS,
     I_GRID_OFFSET,
@@ -24,17 +24,17 @@ from renderer.media.compile import (
 )
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def is_grid(mt, m):
     return mt.index[m, I_KIND] == MEDIUM_GRID
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def emits(mt, m):
     return mt.index[m, I_HAS_EMISSION] != 0
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def _rgb(mt, m, col):
     # Index the 2-D table directly: a row view (mt.params[m]) costs an atomic reference-count
     # round trip per call, which dominated homogeneous free-flight sampling.
@@ -42,58 +42,58 @@ def _rgb(mt, m, col):
     return (np.float64(a[m, col]), np.float64(a[m, col + 1]), np.float64(a[m, col + 2]))
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def sigma_a(mt, m):
     return _rgb(mt, m, P_SIGMA_A)
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def sigma_s(mt, m):
     return _rgb(mt, m, P_SIGMA_S)
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def sigma_t(mt, m):
     a = _rgb(mt, m, P_SIGMA_A)
     s = _rgb(mt, m, P_SIGMA_S)
     return (a[0] + s[0], a[1] + s[1], a[2] + s[2])
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def emission(mt, m):
     return _rgb(mt, m, P_EMISSION)
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def phase_g(mt, m):
     return np.float64(mt.params[m, P_G])
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def blackbody_intensity(mt, m):
     return np.float64(mt.params[m, P_BLACKBODY])
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def emission_rate(mt, m):
     return np.float64(mt.params[m, P_EMISSION_RATE])
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def grid_offset(mt, m, which):
     return mt.index[m, I_GRID_OFFSET + which]
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def grid_dim(mt, m, which, axis):
     return mt.index[m, I_GRID_DIMS + 3 * which + axis]
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def maj_offset(mt, m):
     return mt.index[m, I_MAJ_OFFSET]
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def maj_dim(mt, m, axis):
     return mt.index[m, I_MAJ_DIMS + axis]

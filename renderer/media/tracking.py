@@ -30,9 +30,8 @@ estimate is below RR_THRESHOLD keeps it unbiased and cheap in dense media.
 
 import math
 
-from numba import njit
-
 from renderer.kernels import fastmath as fm
+from renderer.kernels import inline_kernel, kernel
 from renderer.kernels.rng import uniform
 from renderer.media.emission import stack_emission
 from renderer.media.grid import medium_density
@@ -50,7 +49,7 @@ HOMOGENEOUS_EMISSION_COLLISIONS = 4.0
 MAX_COLLISIONS = 10_000_000
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def _sigma_at(mt, stack, x):
     """(sigma_a, sigma_s) of the stack at world point x: entries' density x coefficients."""
     a0 = a1 = a2 = s0 = s1 = s2 = 0.0
@@ -71,7 +70,7 @@ def _sigma_at(mt, stack, x):
     return (a0, a1, a2), (s0, s1, s2)
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False)
+@kernel
 def _start_walk(mt, stack, o, d, t0, rows):
     """Start a DDA for every grid entry; return the homogeneous entries' summed sigma_t,
     whether any homogeneous entry emits, and the number of grid walkers in `rows`."""
@@ -94,7 +93,7 @@ def _start_walk(mt, stack, o, d, t0, rows):
     return (h0, h1, h2), hom_emits, n
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def _piece(mt, rows, n, hom_sigma_t, hom_rate):
     """Majorant (per channel) of the current piece and where the piece ends.
 
@@ -121,7 +120,7 @@ def _piece(mt, rows, n, hom_sigma_t, hom_rate):
     return (mu0, mu1, mu2), end
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def _advance_walk(mt, rows, n, t):
     # `while`: pieces a rounding error made empty are skipped too.
     for j in range(n):
@@ -129,7 +128,7 @@ def _advance_walk(mt, rows, n, t):
             dda_advance(mt, rows[j])
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def _decay(q, mu, dt):
     """q_c * exp(-mu_c dt) per channel (0 * inf safe)."""
     return (
@@ -139,17 +138,17 @@ def _decay(q, mu, dt):
     )
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def _mix(p, q):
     return p[0] * q[0] + p[1] * q[1] + p[2] * q[2]
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def _scaled(q, s):
     return (q[0] / s, q[1] / s, q[2] / s)
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False)
+@kernel
 def delta_track(mt, stack, o, d, t0, t1, p, key, dim, with_emission, rows):
     """Delta tracking with spectral MIS over [t0, t1): (t, collided, weight3, Le3, dim).
 
@@ -211,7 +210,7 @@ def delta_track(mt, stack, o, d, t0, t1, p, key, dim, with_emission, rows):
     return t1, False, q, (le0, le1, le2), dim
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False)
+@kernel
 def ratio_track(mt, stack, o, d, t0, t1, p, key, dim, rows):
     """Ratio tracking with spectral MIS and Russian roulette: (Tr3 estimate, dim)."""
     hom_sigma_t, _, n = _start_walk(mt, stack, o, d, t0, rows)
@@ -267,14 +266,14 @@ def ratio_track(mt, stack, o, d, t0, t1, p, key, dim, rows):
     return f, dim
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False)
+@kernel
 def track_free_flight(mt, stack, o, d, tmax, p, key, dim):
     """sample_distance for grid stacks (see medium.sample_distance)."""
     rows = mt.scratch
     return delta_track(mt, stack, o, d, 0.0, tmax, p, key, dim, stack_has_emission(mt, stack), rows)
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False)
+@kernel
 def track_transmittance(mt, stack, o, d, t0, t1, key, dim, use_delta):
     """transmittance for grid stacks: ratio tracking, or delta tracking with use_delta.
     Channels are picked uniformly (a shadow ray has no throughput to follow)."""

@@ -9,13 +9,12 @@ sphere exactly and |g| up to 0.9999 stays finite (see the comments on each).
 
 import math
 
-from numba import njit
-
 from renderer.kernels import fastmath as fm
+from renderer.kernels import inline_kernel
 from renderer.kernels.vecmath import INV_4PI, onb, to_world
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def hg_denominator(g, cos_theta):
     """1 + g^2 - 2 g cos as a sum of two non-negative terms: (1 - g)^2 + 2 g (1 - cos) for
     g >= 0, (1 + g)^2 - 2 g (1 + cos) for g < 0. At the lobe's peak (|g| -> 1, cos -> sign g)
@@ -25,14 +24,14 @@ def hg_denominator(g, cos_theta):
     return (1.0 + g) * (1.0 + g) - 2.0 * g * (1.0 + cos_theta)
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def hg_eval(g, cos_theta):
     """Phase function value (== pdf, per steradian) for cos_theta = dot(d, wi)."""
     denom = hg_denominator(g, cos_theta)
     return INV_4PI * (1.0 - g * g) / (denom * math.sqrt(denom))
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def hg_sample_cos_s(g, u):
     """cos_theta with density 2 pi p(cos) on [-1, 1] by inverting the CDF, and
     s = sqrt(1 + g^2 - 2 g cos) (the pdf's denominator) at that cos.
@@ -59,13 +58,13 @@ def hg_sample_cos_s(g, u):
     return min(1.0, max(-1.0, c)), s
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def hg_sample_cos(g, u):
     """cos_theta with density 2 pi p(cos) on [-1, 1] (see hg_sample_cos_s)."""
     return hg_sample_cos_s(g, u)[0]
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, _nrt=False, inline="always")
+@inline_kernel
 def hg_sample(g, d, u1, u2):
     """Sample a scattered direction around the propagation direction d: (wi, pdf)."""
     c, s = hg_sample_cos_s(g, u1)
