@@ -9,6 +9,7 @@ import numpy as np
 from numba import njit
 
 from renderer.kernels import fastmath as fm
+from renderer.kernels import simdmath as sm
 
 ULPS = 8 * np.finfo(np.float64).eps  # 1.8e-15
 
@@ -86,3 +87,36 @@ def test_sincos():
     away = np.abs(np.sin(x)) > 1e-3
     assert _rel(out[away, 0], np.sin(x[away])) < ULPS
     assert fm.sincos(1e6) == (np.sin(1e6), np.cos(1e6))
+
+
+# The branch-free versions (renderer.kernels.simdmath), compiled in loops as the SIMD kernels
+# use them.
+
+
+@njit(cache=True)
+def _simd_all(x, y):
+    out = np.empty((x.shape[0], 6))
+    for i in range(x.shape[0]):
+        out[i, 0] = sm.exp_neg(x[i])
+        out[i, 1] = sm.log1p(-y[i])
+        out[i, 2] = sm.atan2(y[i], x[i] - 1.0)
+        out[i, 3], out[i, 4] = sm.sincos(x[i])
+        out[i, 5] = sm.log_normal(x[i] + 1e-300)
+    return out
+
+
+def test_branch_free_versions_match_numpy():
+    rng = np.random.default_rng(4)
+    n = 300000
+    x = np.concatenate([np.logspace(-20, np.log10(700.0), n), rng.uniform(0, 40.0, n)])
+    y = np.concatenate([rng.integers(0, 1 << 24, n) / 2.0**24, -np.logspace(-20, 2, n)])
+    out = _simd_all(x, y)
+    assert _rel(out[:, 0], np.exp(-x)) < ULPS
+    assert _rel(out[:, 1], np.log1p(-y)) < ULPS
+    assert _rel(out[:, 2], np.arctan2(y, x - 1.0)) < ULPS
+    small = np.abs(x) < 1e5
+    assert np.max(np.abs(out[small, 3] - np.sin(x[small]))) < 2 * np.finfo(np.float64).eps
+    assert np.max(np.abs(out[small, 4] - np.cos(x[small]))) < 2 * np.finfo(np.float64).eps
+    assert _rel(out[:, 5], np.log(x + 1e-300)) < ULPS
+    # exp(-x) is 0 past 708 (where libm would give a subnormal) and at infinity.
+    assert _simd_all(np.array([708.5, np.inf]), np.zeros(2))[:, 0].tolist() == [0.0, 0.0]

@@ -43,10 +43,12 @@ from ..lights.sample import (
     pick_light,
     triangle_light_pdf,
 )
+from . import nee_batch
 from .media_api import (
     channel_probabilities,
     nee_vertex_on,
     phase_eval,
+    phase_g,
     sample_distance,
     sample_phase,
     sample_segment,
@@ -66,12 +68,14 @@ CFG_UNIFORM_CHANNEL = 4  # distance sampling picks channels uniformly (else by t
 CFG_EQUIANGULAR = 5
 CFG_HAS_MEDIA = 6
 CFG_WALK_SHADOWS = 7
-CFG_SIZE = 8
+CFG_NEE_BATCH = 8  # homogeneous next-event vertices in SIMD batches (nee_batch); 0 = scalar
+CFG_SIZE = 9
 
 SAMPLING_MIS, SAMPLING_NEE, SAMPLING_BSDF = 0, 1, 2
 MAX_CROSSINGS = 256  # interfaces a path may pass before it is ended (guards open meshes)
 RAY_FAR = 1e30
 SHADOW_DIMS = 64  # random dimensions reserved for a shadow ray's own tracking through media
+MEDIUM_NEE_DIMS = 2 + SHADOW_DIMS  # a medium vertex's light connection and its shadow ray
 
 
 @inline_kernel
@@ -171,22 +175,42 @@ def _hit_weight(mis_pdf, pdf_light, sampling):
 
 @inline_kernel
 def _medium_nee(ps, i, md, lt, cfg, x, d, beta, key, dim, sh, s, light, lp, weight):
-    """Next-event estimation from medium point x (with path weight `weight` to reach it)."""
+    """Next-event estimation from medium point x (with path weight `weight` to reach it).
+    Uses dimensions dim .. dim + MEDIUM_NEE_DIMS - 1 whether or not it emits a shadow ray
+    (so the batched next-event vertex, nee_batch, keeps the same random numbers)."""
     pmf = lt[7]
     wi, dist, le, pdf, is_delta = connect_light(lt, light, lp, x, uniform(key, dim), uniform(key, dim + 1))
-    dim += 2
     stack = ps.stack[i]
     p_light = pdf * pmf[light]
     if p_light <= 0.0 or max3(le) <= 0.0:
-        return s, dim
+        return s
     fph, ph = phase_eval(md, stack, x, d, wi)
     w = _light_sample_weight(lt, light, p_light, ph, is_delta, cfg[CFG_SAMPLING])
     c = scale(mul(mul(mul(beta, weight), le), fph), w / p_light)
     if max3(c) <= 0.0:
-        return s, dim
+        return s
     length = dist * 0.9999 if dist < RAY_FAR else RAY_FAR
-    _emit_shadow(sh, s, x, wi, length, c, ps.pid[i], key, dim, stack, 0.0)
-    return s + 1, dim + SHADOW_DIMS
+    _emit_shadow(sh, s, x, wi, length, c, ps.pid[i], key, dim + 2, stack, 0.0)
+    return s + 1
+
+
+@kernel
+def _flush_nee_batch(count, nb, ps, cfg, sh, s):
+    """Connect the batched next-event vertices 0..count-1 (nee_batch, SIMD across paths) and
+    write the shadow rays of those that carry light from index s; returns the new s."""
+    nee_batch.connect_all(count, nb, cfg[CFG_SAMPLING] != SAMPLING_NEE)
+    _, q_path, _, q_dim, r = nb
+    for j in range(count):
+        c = (r[nee_batch.R_C, j], r[nee_batch.R_C + 1, j], r[nee_batch.R_C + 2, j])
+        if not max3(c) > 0.0:
+            continue
+        i = q_path[j]
+        x = (r[nee_batch.R_X, j], r[nee_batch.R_X + 1, j], r[nee_batch.R_X + 2, j])
+        wi = (r[nee_batch.R_WI, j], r[nee_batch.R_WI + 1, j], r[nee_batch.R_WI + 2, j])
+        _emit_shadow(sh, s, x, wi, r[nee_batch.R_LENGTH, j], c, ps.pid[i], ps.key[i], q_dim[j],
+                     ps.stack[i], 0.0)
+        s += 1
+    return s
 
 
 @inline_kernel
@@ -205,7 +229,7 @@ def _russian_roulette(ps, i, key, dim, rr_depth):
 
 
 @kernel
-def shade_media(n, ps, prim, lt, md, cfg, L, sh):
+def shade_media(n, ps, prim, lt, md, cfg, L, sh, nb):
     """The participating media along each live path's segment [0, hit): emission, the
     next-event vertex, free-flight sampling. A path that scatters gets its next ray here
     (alive = 2); one that reaches the segment's end goes on to shade_surface (alive = 1).
@@ -215,6 +239,9 @@ def shade_media(n, ps, prim, lt, md, cfg, L, sh):
     uniform_channel = cfg[CFG_UNIFORM_CHANNEL] != 0
     s = 0
     cdf = lt[8]
+    batched = cfg[CFG_NEE_BATCH] != 0
+    capacity = nb[0].shape[1]
+    queued = 0
     for i in range(n):
         stack = ps.stack[i]
         if stack_is_empty(stack):
@@ -242,10 +269,23 @@ def shade_media(n, ps, prim, lt, md, cfg, L, sh):
             lp = light_point(lt, light, uniform(key, dim + 1), uniform(key, dim + 2))
             dim += 3
             use_eq = cfg[CFG_EQUIANGULAR] != 0 and light_has_point(lt, light)
-            tn, wn, dim = nee_vertex_on(seg, o, d, t_hit, lp, beta, key, dim, use_eq, uniform_channel)
-            if max3(wn) > 0.0:
-                xn = madd(o, d, tn)
-                s, dim = _medium_nee(ps, i, md, lt, cfg, xn, d, beta, key, dim, sh, s, light, lp, wn)
+            if batched and nee_batch.qualifies(lt, light, stack):
+                u = (uniform(key, dim), uniform(key, dim + 1), uniform(key, dim + 2), uniform(key, dim + 3),
+                     uniform(key, dim + 4))
+                nee_batch.record(nb, queued, i, lt, light, o, d, t_hit, lp, beta, seg,
+                                 channel_probabilities(beta, uniform_channel), u, phase_g(md, stack[0]),
+                                 use_eq, dim + 5)
+                queued += 1
+                if queued == capacity:
+                    s = _flush_nee_batch(queued, nb, ps, cfg, sh, s)
+                    queued = 0
+                dim += 3
+            else:
+                tn, wn, dim = nee_vertex_on(seg, o, d, t_hit, lp, beta, key, dim, use_eq, uniform_channel)
+                if max3(wn) > 0.0:
+                    xn = madd(o, d, tn)
+                    s = _medium_nee(ps, i, md, lt, cfg, xn, d, beta, key, dim, sh, s, light, lp, wn)
+            dim += MEDIUM_NEE_DIMS
             did_nee = True
         if homogeneous:
             p = channel_probabilities(beta, uniform_channel)
@@ -270,7 +310,8 @@ def shade_media(n, ps, prim, lt, md, cfg, L, sh):
             light = pick_light(cdf, uniform(key, dim))
             lp = light_point(lt, light, uniform(key, dim + 1), uniform(key, dim + 2))
             dim += 3
-            s, dim = _medium_nee(ps, i, md, lt, cfg, x, d, beta, key, dim, sh, s, light, lp, (1.0, 1.0, 1.0))
+            s = _medium_nee(ps, i, md, lt, cfg, x, d, beta, key, dim, sh, s, light, lp, (1.0, 1.0, 1.0))
+            dim += MEDIUM_NEE_DIMS
         wi, pw, ph_pdf = sample_phase(md, stack, x, d, uniform(key, dim), uniform(key, dim + 1),
                                       uniform(key, dim + 2))
         dim += 3
@@ -285,6 +326,8 @@ def shade_media(n, ps, prim, lt, md, cfg, L, sh):
         alive, dim = _russian_roulette(ps, i, key, dim, cfg[CFG_RR_DEPTH])
         ps.alive[i] = 2 if alive else 0
         ps.dim[i] = dim
+    if queued > 0:
+        s = _flush_nee_batch(queued, nb, ps, cfg, sh, s)
     return s
 
 

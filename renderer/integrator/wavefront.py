@@ -10,6 +10,7 @@ from ..film import Film
 from ..geometry import Intersector
 from ..scene import IntegratorSettings
 from . import kernels as K
+from .nee_batch import CHUNK, NeeBatch
 from .state import allocate_paths, allocate_shadows
 
 SAMPLING_CODES = {"mis": K.SAMPLING_MIS, "nee": K.SAMPLING_NEE, "bsdf": K.SAMPLING_BSDF}
@@ -25,6 +26,7 @@ def make_config(cs: CompiledScene, settings: IntegratorSettings) -> np.ndarray:
     cfg[K.CFG_EQUIANGULAR] = settings.equiangular
     cfg[K.CFG_HAS_MEDIA] = cs.has_media
     cfg[K.CFG_WALK_SHADOWS] = cs.needs_shadow_walk
+    cfg[K.CFG_NEE_BATCH] = 1
     return cfg
 
 
@@ -73,6 +75,7 @@ class Tracer:
         self.batch = int(settings.batch_size)
         self.ps = allocate_paths(self.batch)
         self.sh = allocate_shadows(self.batch)
+        self.nb = NeeBatch(min(CHUNK, self.batch)).arrays() if cs.has_media else None
         self.L = np.zeros((self.batch, 3), np.float64)
         self.pixel_of_pid = np.zeros(self.batch, np.int32)
         self.remaining = np.zeros(2 * self.batch, np.float32)
@@ -101,7 +104,7 @@ class Tracer:
             self.stats["rays"] += live
             count = 0
             if cs.has_media:
-                count = K.shade_media(live, ps, prim, self.lt, cs.media, self.cfg, self.L, sh)
+                count = K.shade_media(live, ps, prim, self.lt, cs.media, self.cfg, self.L, sh, self.nb)
             count = K.shade_surface(live, ps, prim, bu, bv, cs.geometry, cs.materials, self.lt,
                                     cs.lights.env_light, cs.lights.sun_rows, self.cfg, self.L, sh, count)
             if count:

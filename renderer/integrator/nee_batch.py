@@ -1,0 +1,346 @@
+"""The decoupled next-event vertex of homogeneous segments, as one SIMD loop across paths.
+
+shade_media's next-event vertex (a point on the segment by equiangular/free-flight MIS, a
+point on a triangle light by solid angle, the phase function and the MIS weight toward it)
+is a chain of about 12 square roots, 15 divisions, 3 exp, 2 atan2 and 2 sincos per path.
+Inside the per-path loop it runs at the latency of that chain (108 ns per path, half of the
+medium kernel's time in the fog Cornell box). So shade_media only records each request here
+(`record`); `connect_all` then runs the same maths for the whole batch as one loop without
+branches, which LLVM vectorises (8 paths per AVX-512 instruction), and `emit_all` writes the
+shadow rays of the connections that carry light.
+
+Which requests qualify (`qualifies`): a homogeneous stack with one entry (so the phase
+function is one Henyey-Greenstein lobe) and a triangle light. Everything else (grids,
+overlapping media, point, spot and distant lights) keeps the scalar path in kernels.py,
+which computes the same thing; tests/test_nee_batch.py holds the two to 1e-12.
+
+Request rows: q (Q_ROWS, capacity) float64, one column per request, laid out so that each
+quantity is a contiguous row (what SIMD loads want). q_path (capacity,) int32 is the path
+row, q_light (capacity,) int32 the light row, q_dim (capacity,) int32 the first random
+dimension of the shadow ray. Results: r (R_ROWS, capacity) float64: the vertex x, the
+direction wi to the light, the shadow ray's length and its contribution (0 when none).
+"""
+
+import math
+
+import numpy as np
+
+from renderer.kernels import inline_kernel, kernel
+from renderer.kernels import simdmath as sm
+from renderer.kernels.vecmath import INV_4PI
+from renderer.lights.sample import SOLID_ANGLE_GATE
+from renderer.lights.spherical_triangle import MIN_SOLID_ANGLE
+from renderer.lights.table import TRIANGLE
+from renderer.media.equiangular import D_FLOOR, D_MIN, MIN_THETA
+from renderer.media.stack import EMPTY
+
+Q_O, Q_D, Q_TMAX, Q_LP, Q_BETA = 0, 3, 6, 7, 10
+Q_ST, Q_SS, Q_MISS, Q_P = 13, 16, 19, 22
+Q_U_TECHNIQUE, Q_U_CHANNEL, Q_U_T, Q_U1, Q_U2 = 25, 26, 27, 28, 29
+Q_G, Q_EQUIANGULAR = 30, 31
+Q_P0, Q_P1, Q_P2, Q_AREA, Q_LE_FRONT, Q_LE_BACK, Q_PMF = 32, 35, 38, 41, 42, 45, 48
+Q_ROWS = 49
+R_X, R_WI, R_LENGTH, R_C = 0, 3, 6, 7
+R_ROWS = 10
+# Requests per SIMD pass: 1.6 MB of request rows, which stay in cache. Not a power of two: with
+# rows exactly 32 KiB apart, the 49 stores of one request all fell into one cache set and
+# recording took 200 ns a request instead of a few (measured); one extra cache line per row
+# spreads them over 49 sets.
+CHUNK = 4096 + 8
+
+
+class NeeBatch:
+    """Request and result storage for up to `capacity` next-event vertices."""
+
+    def __init__(self, capacity: int):
+        self.q = np.zeros((Q_ROWS, capacity), np.float64)
+        self.q_path = np.zeros(capacity, np.int32)
+        self.q_light = np.zeros(capacity, np.int32)
+        self.q_dim = np.zeros(capacity, np.int32)
+        self.r = np.zeros((R_ROWS, capacity), np.float64)
+
+    def arrays(self):
+        return self.q, self.q_path, self.q_light, self.q_dim, self.r
+
+
+@inline_kernel
+def qualifies(lt, light, stack):
+    return lt[0][light] == TRIANGLE and stack[1] == EMPTY
+
+
+@inline_kernel
+def _put3(a, row, j, v):
+    a[row, j] = v[0]
+    a[row + 1, j] = v[1]
+    a[row + 2, j] = v[2]
+
+
+@inline_kernel
+def record(nb, j, path, lt, light, o, d, tmax, lp, beta, seg, p, u, g, use_equiangular, dim):
+    """Store request j. seg = homogeneous.segment's (sigma_a, sigma_s, sigma_t, T, 1 - T);
+    u = (u_technique, u_channel, u_t, u1, u2); dim: the shadow ray's first dimension."""
+    q, q_path, q_light, q_dim, _ = nb
+    _put3(q, Q_O, j, o)
+    _put3(q, Q_D, j, d)
+    q[Q_TMAX, j] = tmax
+    _put3(q, Q_LP, j, lp)
+    _put3(q, Q_BETA, j, beta)
+    _put3(q, Q_ST, j, seg[2])
+    _put3(q, Q_SS, j, seg[1])
+    _put3(q, Q_MISS, j, seg[4])
+    _put3(q, Q_P, j, p)
+    q[Q_U_TECHNIQUE, j] = u[0]
+    q[Q_U_CHANNEL, j] = u[1]
+    q[Q_U_T, j] = u[2]
+    q[Q_U1, j] = u[3]
+    q[Q_U2, j] = u[4]
+    q[Q_G, j] = g
+    q[Q_EQUIANGULAR, j] = 1.0 if use_equiangular else 0.0
+    q_path[j] = path
+    q_light[j] = light
+    q_dim[j] = dim
+    # The light's data too: the SIMD loop then reads only rows at j (a gather by light index
+    # would keep LLVM from bounding the loop's memory accesses, and so from vectorising it).
+    pos, vec_a, vec_b, color, color_b, param, pmf = lt[1], lt[2], lt[3], lt[4], lt[5], lt[6], lt[7]
+    for k in range(3):
+        p0 = np.float64(pos[light, k])
+        q[Q_P0 + k, j] = p0
+        q[Q_P1 + k, j] = p0 + np.float64(vec_a[light, k])
+        q[Q_P2 + k, j] = p0 + np.float64(vec_b[light, k])
+        q[Q_LE_FRONT + k, j] = color[light, k]
+        q[Q_LE_BACK + k, j] = color_b[light, k]
+    q[Q_AREA, j] = param[light, 0]
+    q[Q_PMF, j] = pmf[light]
+
+
+# The maths below restates, without branches, media/nee.py (nee_vertex_on),
+# media/equiangular.py, media/homogeneous.py (beer, sample_truncated, truncated_pdf),
+# lights/sample.py (connect_light for triangles), lights/spherical_triangle.py and
+# phase/hg.py (hg_eval): every `x if cond else y` compiles to a select.
+
+
+@inline_kernel
+def _pick(c, a, b, e):
+    return a if c == 0 else (b if c == 1 else e)
+
+
+@inline_kernel
+def _channel(p0, p1, p2, u):
+    """media.spectral.pick_channel."""
+    second = u < p0 + p1 or p2 == 0.0
+    return 0 if u < p0 else ((1 if p1 > 0.0 else 0) if second else 2)
+
+
+@inline_kernel
+def _truncated_sample(sigma, tmax, miss, u):
+    ok = sigma > 0.0 and miss > 0.0
+    t = min(-sm.log1p(-u * miss) / (sigma if ok else 1.0), tmax)
+    return t if ok else u * tmax
+
+
+@inline_kernel
+def _truncated_pdf(sigma, tmax, miss, tr_t):
+    ok = sigma > 0.0 and miss > 0.0
+    return sigma * tr_t / (miss if ok else 1.0) if ok else 1.0 / tmax
+
+
+@inline_kernel
+def _optical_depth(sigma, t):
+    return sigma * t if sigma > 0.0 else 0.0
+
+
+@inline_kernel
+def _vertex(q, j):
+    """(t, weight3, valid) of the next-event vertex on [0, tmax) (media.nee.nee_vertex_on)."""
+    ox, oy, oz = q[Q_O, j], q[Q_O + 1, j], q[Q_O + 2, j]
+    dx, dy, dz = q[Q_D, j], q[Q_D + 1, j], q[Q_D + 2, j]
+    tmax = q[Q_TMAX, j]
+    st0, st1, st2 = q[Q_ST, j], q[Q_ST + 1, j], q[Q_ST + 2, j]
+    ss0, ss1, ss2 = q[Q_SS, j], q[Q_SS + 1, j], q[Q_SS + 2, j]
+    m0, m1, m2 = q[Q_MISS, j], q[Q_MISS + 1, j], q[Q_MISS + 2, j]
+    p0, p1, p2 = q[Q_P, j], q[Q_P + 1, j], q[Q_P + 2, j]
+    use_eq = q[Q_EQUIANGULAR, j] != 0.0
+    # Equiangular frame toward the light point.
+    lx, ly, lz = q[Q_LP, j] - ox, q[Q_LP + 1, j] - oy, q[Q_LP + 2, j] - oz
+    delta = lx * dx + ly * dy + lz * dz
+    px, py, pz = lx - delta * dx, ly - delta * dy, lz - delta * dz
+    big_d = max(math.sqrt(px * px + py * py + pz * pz), D_FLOOR * abs(delta), D_MIN)
+    theta_d = sm.atan2(big_d * tmax, big_d * big_d - delta * (tmax - delta))
+    degenerate = not theta_d >= MIN_THETA
+    u_t = q[Q_U_T, j]
+    sin_phi, cos_phi = sm.sincos(u_t * theta_d)
+    denom = big_d * cos_phi + delta * sin_phi
+    t_eq = min(max((delta * delta + big_d * big_d) * sin_phi / denom, 0.0), tmax)
+    t_eq = tmax if denom <= 0.0 else t_eq
+    t_eq = u_t * tmax if degenerate else t_eq
+    # Truncated free flight in the channel chosen by p.
+    c = _channel(p0, p1, p2, q[Q_U_CHANNEL, j])
+    t_ff = _truncated_sample(_pick(c, st0, st1, st2), tmax, _pick(c, m0, m1, m2), u_t)
+    t = t_eq if (use_eq and q[Q_U_TECHNIQUE, j] < 0.5) else t_ff
+    tr0 = sm.exp_neg(_optical_depth(st0, t))
+    tr1 = sm.exp_neg(_optical_depth(st1, t))
+    tr2 = sm.exp_neg(_optical_depth(st2, t))
+    pdf = (p0 * _truncated_pdf(st0, tmax, m0, tr0) + p1 * _truncated_pdf(st1, tmax, m1, tr1)
+           + p2 * _truncated_pdf(st2, tmax, m2, tr2))
+    x = t - delta
+    pdf_eq = 1.0 / tmax if degenerate else big_d / (theta_d * (big_d * big_d + x * x))
+    pdf = 0.5 * pdf + 0.5 * pdf_eq if use_eq else pdf
+    valid = (ss0 > 0.0 or ss1 > 0.0 or ss2 > 0.0) and tmax > 0.0
+    inv = 1.0 / pdf
+    return t, (tr0 * ss0 * inv, tr1 * ss1 * inv, tr2 * ss2 * inv), valid
+
+
+@inline_kernel
+def _unit3(x, y, z):
+    n = math.sqrt(x * x + y * y + z * z)
+    inv = 1.0 / n if n > 0.0 else 0.0
+    return x * inv, y * inv, z * inv
+
+
+@inline_kernel
+def _unit(v):
+    return _unit3(v[0], v[1], v[2])
+
+
+@inline_kernel
+def _cross(a, b):
+    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
+
+
+@inline_kernel
+def _dot(a, b):
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+
+
+@inline_kernel
+def _orthogonal_unit(v, axis):
+    k = _dot(v, axis)
+    return _unit3(v[0] - k * axis[0], v[1] - k * axis[1], v[2] - k * axis[2])
+
+
+@inline_kernel
+def _solid_angle_direction(a, b, c, omega, u1, u2):
+    """lights.spherical_triangle.sample_spherical_triangle (Arvo 1995)."""
+    n_ab = _unit(_cross(a, b))
+    n_ac = _unit(_cross(a, c))
+    cos_alpha = min(max(_dot(n_ab, n_ac), -1.0), 1.0)
+    sin_alpha = math.sqrt(max(0.0, 1.0 - cos_alpha * cos_alpha))
+    sin_area, cos_area = sm.sincos(u1 * omega)
+    s = sin_area * cos_alpha - cos_area * sin_alpha
+    t = cos_area * cos_alpha + sin_area * sin_alpha
+    u = t - cos_alpha
+    v = s + sin_alpha * _dot(a, b)
+    denom = (v * s + u * t) * sin_alpha
+    q = ((v * t - u * s) * cos_alpha - v) / (denom if denom != 0.0 else 1.0)
+    q = min(max(q if denom != 0.0 else 1.0, -1.0), 1.0)
+    o = _orthogonal_unit(c, a)
+    r = math.sqrt(max(0.0, 1.0 - q * q))
+    c_new = (q * a[0] + r * o[0], q * a[1] + r * o[1], q * a[2] + r * o[2])
+    z = min(max(1.0 - u2 * (1.0 - _dot(c_new, b)), -1.0), 1.0)
+    o = _orthogonal_unit(c_new, b)
+    r = math.sqrt(max(0.0, 1.0 - z * z))
+    return _unit3(z * b[0] + r * o[0], z * b[1] + r * o[1], z * b[2] + r * o[2])
+
+
+@inline_kernel
+def _connect_triangle(q, j, x, u1, u2):
+    """(wi, dist, back_side, pdf) of lights.sample.connect_light for a triangle light; pdf 0
+    when there is no connection."""
+    p0 = (q[Q_P0, j], q[Q_P0 + 1, j], q[Q_P0 + 2, j])
+    p1 = (q[Q_P1, j], q[Q_P1 + 1, j], q[Q_P1 + 2, j])
+    p2 = (q[Q_P2, j], q[Q_P2 + 1, j], q[Q_P2 + 2, j])
+    lp = (q[Q_LP, j], q[Q_LP + 1, j], q[Q_LP + 2, j])
+    e1 = (p1[0] - p0[0], p1[1] - p0[1], p1[2] - p0[2])
+    e2 = (p2[0] - p0[0], p2[1] - p0[1], p2[2] - p0[2])
+    # Gate: solid angle estimated from the centroid (lights.sample._near).
+    n2 = _cross(e1, e2)
+    third = 1.0 / 3.0
+    cx = (p0[0] + p1[0] + p2[0]) * third - x[0]
+    cy = (p0[1] + p1[1] + p2[1]) * third - x[1]
+    cz = (p0[2] + p1[2] + p2[2]) * third - x[2]
+    r2 = cx * cx + cy * cy + cz * cz
+    near = abs(n2[0] * cx + n2[1] * cy + n2[2] * cz) >= 2.0 * SOLID_ANGLE_GATE * r2 * math.sqrt(r2)
+    # Solid angle and Arvo's direction.
+    a = _unit3(p0[0] - x[0], p0[1] - x[1], p0[2] - x[2])
+    b = _unit3(p1[0] - x[0], p1[1] - x[1], p1[2] - x[2])
+    c = _unit3(p2[0] - x[0], p2[1] - x[1], p2[2] - x[2])
+    omega = 2.0 * sm.atan2(abs(_dot(a, _cross(b, c))), 1.0 + _dot(a, b) + _dot(b, c) + _dot(c, a))
+    solid = near and omega >= MIN_SOLID_ANGLE and omega < math.inf
+    w_sa = _solid_angle_direction(a, b, c, omega, u1, u2)
+    n = _unit(n2)
+    cos_sa = -_dot(w_sa, n)
+    dist_sa = ((x[0] - p0[0]) * n[0] + (x[1] - p0[1]) * n[1] + (x[2] - p0[2]) * n[2]) / (
+        cos_sa if cos_sa != 0.0 else 1.0)
+    ok_sa = cos_sa != 0.0 and dist_sa > 0.0 and dist_sa < math.inf
+    # Area sampling toward the light point.
+    tx, ty, tz = lp[0] - x[0], lp[1] - x[1], lp[2] - x[2]
+    dist_a = math.sqrt(tx * tx + ty * ty + tz * tz)
+    inv = 1.0 / dist_a if dist_a > 0.0 else 0.0
+    w_a = (tx * inv, ty * inv, tz * inv)
+    cos_a = -_dot(w_a, n)
+    area = q[Q_AREA, j]
+    ok_a = dist_a > 0.0 and abs(cos_a) >= 1e-8 and area > 0.0
+    pdf_a = dist_a * dist_a / (area * abs(cos_a)) if ok_a else 0.0
+    wi = w_sa if solid else w_a
+    dist = dist_sa if solid else dist_a
+    cos_l = cos_sa if solid else cos_a
+    pdf = (1.0 / omega if ok_sa else 0.0) if solid else pdf_a
+    return wi, dist, cos_l < 0.0, pdf
+
+
+@inline_kernel
+def _hg(g, cos_theta):
+    """phase.hg.hg_eval."""
+    denom = ((1.0 - g) * (1.0 - g) + 2.0 * g * (1.0 - cos_theta) if g >= 0.0
+             else (1.0 + g) * (1.0 + g) - 2.0 * g * (1.0 + cos_theta))
+    return INV_4PI * (1.0 - g * g) / (denom * math.sqrt(denom))
+
+
+@kernel
+def vertices(n, nb):
+    """Stage 1: the next-event vertex x of requests 0..n-1 and its weight (0 when none)."""
+    q, _, _, _, r = nb
+    for j in range(n):
+        t, wn, valid = _vertex(q, j)
+        r[R_X, j] = q[Q_O, j] + t * q[Q_D, j]
+        r[R_X + 1, j] = q[Q_O + 1, j] + t * q[Q_D + 1, j]
+        r[R_X + 2, j] = q[Q_O + 2, j] + t * q[Q_D + 2, j]
+        r[R_C, j] = wn[0] if valid else 0.0
+        r[R_C + 1, j] = wn[1] if valid else 0.0
+        r[R_C + 2, j] = wn[2] if valid else 0.0
+
+
+@kernel
+def connections(n, nb, mis):
+    """Stage 2: the light connection of each vertex; R_C becomes the shadow ray's
+    contribution. mis False = light sampling only (weight 1)."""
+    q, _, _, _, r = nb
+    for j in range(n):
+        d = (q[Q_D, j], q[Q_D + 1, j], q[Q_D + 2, j])
+        x = (r[R_X, j], r[R_X + 1, j], r[R_X + 2, j])
+        wi, dist, back, pdf = _connect_triangle(q, j, x, q[Q_U1, j], q[Q_U2, j])
+        # A blend with weights 0 and 1 (exact), not `back ? row_b : row_f`: LLVM turns a
+        # select of two loads into a load from a selected address, which it cannot vectorise.
+        f = 1.0 if back else 0.0
+        le0 = q[Q_LE_FRONT, j] * (1.0 - f) + q[Q_LE_BACK, j] * f
+        le1 = q[Q_LE_FRONT + 1, j] * (1.0 - f) + q[Q_LE_BACK + 1, j] * f
+        le2 = q[Q_LE_FRONT + 2, j] * (1.0 - f) + q[Q_LE_BACK + 2, j] * f
+        p_light = pdf * q[Q_PMF, j]
+        ph = _hg(q[Q_G, j], _dot(d, wi))
+        a2 = p_light * p_light
+        b2 = ph * ph
+        w = (a2 / (a2 + b2) if a2 + b2 > 0.0 else 0.0) if mis else 1.0
+        k = w / p_light * ph if p_light > 0.0 else 0.0
+        r[R_WI, j] = wi[0]
+        r[R_WI + 1, j] = wi[1]
+        r[R_WI + 2, j] = wi[2]
+        r[R_LENGTH, j] = dist * 0.9999
+        r[R_C, j] = q[Q_BETA, j] * r[R_C, j] * le0 * k
+        r[R_C + 1, j] = q[Q_BETA + 1, j] * r[R_C + 1, j] * le1 * k
+        r[R_C + 2, j] = q[Q_BETA + 2, j] * r[R_C + 2, j] * le2 * k
+
+
+@kernel
+def connect_all(n, nb, mis):
+    vertices(n, nb)
+    connections(n, nb, mis)
