@@ -86,8 +86,8 @@ def _rays(cs, n, rng):
     ({"sigma_a": (0.0, 0.05, 2.0), "sigma_s": (0.5, 0.0, 1e-4)}, 0.9),
     ({"sigma_a": (1e-3, 1e-3, 1e-3), "sigma_s": (30.0, 3.0, 0.3)}, -0.7),
 ])
-@pytest.mark.parametrize("mis", [True, False])
-def test_batch_matches_the_scalar_connection(medium_kw, g, mis):
+@pytest.mark.parametrize("mis, with_transmittance", [(True, False), (False, False), (True, True)])
+def test_batch_matches_the_scalar_connection(medium_kw, g, mis, with_transmittance):
     scene = cornell_box(8, 1, medium=Medium("m", "homogeneous", g=g, **medium_kw) if medium_kw else fog(g))
     cs = compile_scene(scene)
     lt = cs.lights
@@ -100,9 +100,12 @@ def test_batch_matches_the_scalar_connection(medium_kw, g, mis):
     use_eq = rng.random(n) < 0.8
     nb = NB.NeeBatch(n).arrays()
     _requests(nb, lt, cs.media, stack, o, d, tmax, beta, light, g, use_eq, 3)
-    NB.connect_all(n, nb, mis)
+    NB.connect_all(n, nb, mis, with_transmittance)
     ref = np.zeros((10, n))
     _scalar(nb, lt, cs.media, stack, o, d, tmax, beta, light, g, use_eq, 3, mis, ref)
+    if with_transmittance:  # what shadow_media would multiply in
+        sigma_t = nb[0][NB.Q_ST:NB.Q_ST + 3, :n]
+        ref[7:] *= np.exp(-sigma_t * ref[6])
     got = nb[4][:, :n]
     live = ref[7:].max(axis=0) > 0.0
     assert 0.5 * n < live.sum() < n  # both kinds of request occur
@@ -135,7 +138,7 @@ def test_the_batch_loops_compile_to_simd():
     and lose the speed silently, so check the vector types in the IR."""
     options = {**JIT_OPTIONS, "cache": False}
     nb = NB.NeeBatch(16).arrays()
-    for stage, args in ((NB.vertices, (16, nb)), (NB.connections, (16, nb, True))):
+    for stage, args in ((NB.vertices, (16, nb)), (NB.connections, (16, nb, True, True))):
         fresh = njit(**options)(stage.py_func)
         fresh(*args)
         ir = "".join(fresh.inspect_llvm().values())

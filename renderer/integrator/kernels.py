@@ -45,6 +45,7 @@ from ..lights.sample import (
 )
 from . import nee_batch
 from .media_api import (
+    EMPTY,
     channel_probabilities,
     nee_vertex_on,
     phase_eval,
@@ -198,7 +199,10 @@ def _medium_nee(ps, i, md, lt, cfg, x, d, beta, key, dim, sh, s, light, lp, weig
 def _flush_nee_batch(count, nb, ps, cfg, sh, s):
     """Connect the batched next-event vertices 0..count-1 (nee_batch, SIMD across paths) and
     write the shadow rays of those that carry light from index s; returns the new s."""
-    nee_batch.connect_all(count, nb, cfg[CFG_SAMPLING] != SAMPLING_NEE)
+    # Without interfaces a shadow ray stays in its medium, so the batch applies the
+    # transmittance too (SIMD) and the ray leaves with an empty stack: shadow_media skips it.
+    in_batch = cfg[CFG_WALK_SHADOWS] == 0
+    nee_batch.connect_all(count, nb, cfg[CFG_SAMPLING] != SAMPLING_NEE, in_batch)
     _, q_path, _, q_dim, r = nb
     for j in range(count):
         c = (r[nee_batch.R_C, j], r[nee_batch.R_C + 1, j], r[nee_batch.R_C + 2, j])
@@ -209,6 +213,8 @@ def _flush_nee_batch(count, nb, ps, cfg, sh, s):
         wi = (r[nee_batch.R_WI, j], r[nee_batch.R_WI + 1, j], r[nee_batch.R_WI + 2, j])
         _emit_shadow(sh, s, x, wi, r[nee_batch.R_LENGTH, j], c, ps.pid[i], ps.key[i], q_dim[j],
                      ps.stack[i], 0.0)
+        if in_batch:
+            sh.stack[s, 0] = EMPTY
         s += 1
     return s
 

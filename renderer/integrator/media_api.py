@@ -8,12 +8,12 @@ from ..media.homogeneous import segment
 from ..media.medium import sample_distance, sample_segment, transmittance
 from ..media.nee import nee_vertex_on
 from ..media.spectral import channel_probabilities
-from ..media.stack import stack_has_grid, stack_is_empty, stack_push, stack_remove
+from ..media.stack import EMPTY, stack_has_grid, stack_is_empty, stack_push, stack_remove
 from ..media.stack_phase import phase_eval, sample_phase
 from ..media.table import phase_g
 
 __all__ = [
-    "channel_probabilities", "nee_vertex_on", "phase_eval", "phase_g", "sample_distance", "sample_phase",
-    "sample_segment", "segment", "stack_has_grid", "stack_is_empty", "stack_push", "stack_remove",
-    "transmittance",
+    "EMPTY", "channel_probabilities", "nee_vertex_on", "phase_eval", "phase_g", "sample_distance",
+    "sample_phase", "sample_segment", "segment", "stack_has_grid", "stack_is_empty", "stack_push",
+    "stack_remove", "transmittance",
 ]

@@ -311,9 +311,12 @@ def vertices(n, nb):
 
 
 @kernel
-def connections(n, nb, mis):
+def connections(n, nb, mis, with_transmittance):
     """Stage 2: the light connection of each vertex; R_C becomes the shadow ray's
-    contribution. mis False = light sampling only (weight 1)."""
+    contribution. mis False = light sampling only (weight 1). with_transmittance: include the
+    shadow ray's transmittance exp(-sigma_t length) (valid when no interface can lie on a
+    shadow ray, so its medium is the request's all along; the integrator then leaves the
+    ray out of shadow_media)."""
     q, _, _, _, r = nb
     for j in range(n):
         d = (q[Q_D, j], q[Q_D + 1, j], q[Q_D + 2, j])
@@ -334,13 +337,17 @@ def connections(n, nb, mis):
         r[R_WI, j] = wi[0]
         r[R_WI + 1, j] = wi[1]
         r[R_WI + 2, j] = wi[2]
-        r[R_LENGTH, j] = dist * 0.9999
-        r[R_C, j] = q[Q_BETA, j] * r[R_C, j] * le0 * k
-        r[R_C + 1, j] = q[Q_BETA + 1, j] * r[R_C + 1, j] * le1 * k
-        r[R_C + 2, j] = q[Q_BETA + 2, j] * r[R_C + 2, j] * le2 * k
+        length = dist * 0.9999
+        r[R_LENGTH, j] = length
+        tr0 = sm.exp_neg(_optical_depth(q[Q_ST, j], length)) if with_transmittance else 1.0
+        tr1 = sm.exp_neg(_optical_depth(q[Q_ST + 1, j], length)) if with_transmittance else 1.0
+        tr2 = sm.exp_neg(_optical_depth(q[Q_ST + 2, j], length)) if with_transmittance else 1.0
+        r[R_C, j] = q[Q_BETA, j] * r[R_C, j] * le0 * k * tr0
+        r[R_C + 1, j] = q[Q_BETA + 1, j] * r[R_C + 1, j] * le1 * k * tr1
+        r[R_C + 2, j] = q[Q_BETA + 2, j] * r[R_C + 2, j] * le2 * k * tr2
 
 
 @kernel
-def connect_all(n, nb, mis):
+def connect_all(n, nb, mis, with_transmittance):
     vertices(n, nb)
-    connections(n, nb, mis)
+    connections(n, nb, mis, with_transmittance)
