@@ -45,12 +45,13 @@ def _requests(nb, lt, md, stack, o, d, tmax, beta, light, g, use_eq, seed):
 def _scalar(nb, lt, md, stack, o, d, tmax, beta, light, g, use_eq, seed, mis, out):
     """The scalar path's vertex, connection and contribution (kernels._medium_nee)."""
     q = nb[0]
+    C = NB.CHUNK
     for j in range(o.shape[0]):
         key = path_key(seed, j, 0)
         oo = (o[j, 0], o[j, 1], o[j, 2])
         dd = (d[j, 0], d[j, 1], d[j, 2])
         bb = (beta[j, 0], beta[j, 1], beta[j, 2])
-        lp = (q[NB.Q_LP, j], q[NB.Q_LP + 1, j], q[NB.Q_LP + 2, j])
+        lp = (q[NB.Q_LP * C + j], q[(NB.Q_LP + 1) * C + j], q[(NB.Q_LP + 2) * C + j])
         t, wn, dim = nee_vertex_on(segment(md, stack, tmax[j]), oo, dd, tmax[j], lp, bb, key, 0, use_eq[j],
                                    False)
         x = (oo[0] + t * dd[0], oo[1] + t * dd[1], oo[2] + t * dd[2])
@@ -98,15 +99,15 @@ def test_batch_matches_the_scalar_connection(medium_kw, g, mis, with_transmittan
     o, d, tmax, beta = _rays(cs, n, rng)
     light = rng.integers(0, len(lt[7]), n).astype(np.int32)
     use_eq = rng.random(n) < 0.8
-    nb = NB.NeeBatch(n).arrays()
+    nb = NB.NeeBatch().arrays()
     _requests(nb, lt, cs.media, stack, o, d, tmax, beta, light, g, use_eq, 3)
     NB.connect_all(n, nb, mis, with_transmittance)
     ref = np.zeros((10, n))
     _scalar(nb, lt, cs.media, stack, o, d, tmax, beta, light, g, use_eq, 3, mis, ref)
     if with_transmittance:  # what shadow_media would multiply in
-        sigma_t = nb[0][NB.Q_ST:NB.Q_ST + 3, :n]
+        sigma_t = nb[0].reshape(NB.Q_ROWS, NB.CHUNK)[NB.Q_ST:NB.Q_ST + 3, :n]
         ref[7:] *= np.exp(-sigma_t * ref[6])
-    got = nb[4][:, :n]
+    got = nb[3].reshape(NB.R_ROWS, NB.CHUNK)[:, :n]
     live = ref[7:].max(axis=0) > 0.0
     assert 0.5 * n < live.sum() < n  # both kinds of request occur
     assert np.array_equal(got[7:].max(axis=0) > 0.0, live)
@@ -134,10 +135,10 @@ def test_render_is_the_same_with_and_without_batching():
 
 def test_the_batch_loops_compile_to_simd():
     """LLVM vectorises the loops only when nothing in them defeats it (a select between two
-    loads, a call, too many runtime alias checks): a regression would keep the images right
-    and lose the speed silently, so check the vector types in the IR."""
+    loads, a call, an access it cannot prove disjoint from the stores): a regression would
+    keep the images right and lose the speed silently, so check the vector types in the IR."""
     options = {**JIT_OPTIONS, "cache": False}
-    nb = NB.NeeBatch(16).arrays()
+    nb = NB.NeeBatch().arrays()
     for stage, args in ((NB.vertices, (16, nb)), (NB.connections, (16, nb, True, True))):
         fresh = njit(**options)(stage.py_func)
         fresh(*args)

@@ -203,16 +203,13 @@ def _flush_nee_batch(count, nb, ps, cfg, sh, s):
     # transmittance too (SIMD) and the ray leaves with an empty stack: shadow_media skips it.
     in_batch = cfg[CFG_WALK_SHADOWS] == 0
     nee_batch.connect_all(count, nb, cfg[CFG_SAMPLING] != SAMPLING_NEE, in_batch)
-    _, q_path, _, q_dim, r = nb
+    _, q_path, q_dim, r = nb
     for j in range(count):
-        c = (r[nee_batch.R_C, j], r[nee_batch.R_C + 1, j], r[nee_batch.R_C + 2, j])
+        x, wi, length, c = nee_batch.result(r, j)
         if not max3(c) > 0.0:
             continue
         i = q_path[j]
-        x = (r[nee_batch.R_X, j], r[nee_batch.R_X + 1, j], r[nee_batch.R_X + 2, j])
-        wi = (r[nee_batch.R_WI, j], r[nee_batch.R_WI + 1, j], r[nee_batch.R_WI + 2, j])
-        _emit_shadow(sh, s, x, wi, r[nee_batch.R_LENGTH, j], c, ps.pid[i], ps.key[i], q_dim[j],
-                     ps.stack[i], 0.0)
+        _emit_shadow(sh, s, x, wi, length, c, ps.pid[i], ps.key[i], q_dim[j], ps.stack[i], 0.0)
         if in_batch:
             sh.stack[s, 0] = EMPTY
         s += 1
@@ -246,7 +243,6 @@ def shade_media(n, ps, prim, lt, md, cfg, L, sh, nb):
     s = 0
     cdf = lt[8]
     batched = cfg[CFG_NEE_BATCH] != 0
-    capacity = nb[0].shape[1]
     queued = 0
     for i in range(n):
         stack = ps.stack[i]
@@ -282,7 +278,7 @@ def shade_media(n, ps, prim, lt, md, cfg, L, sh, nb):
                                  channel_probabilities(beta, uniform_channel), u, phase_g(md, stack[0]),
                                  use_eq, dim + 5)
                 queued += 1
-                if queued == capacity:
+                if queued == nee_batch.CHUNK:
                     s = _flush_nee_batch(queued, nb, ps, cfg, sh, s)
                     queued = 0
                 dim += 3

@@ -14,11 +14,14 @@ function is one Henyey-Greenstein lobe) and a triangle light. Everything else (g
 overlapping media, point, spot and distant lights) keeps the scalar path in kernels.py,
 which computes the same thing; tests/test_nee_batch.py holds the two to 1e-12.
 
-Request rows: q (Q_ROWS, capacity) float64, one column per request, laid out so that each
-quantity is a contiguous row (what SIMD loads want). q_path (capacity,) int32 is the path
-row, q_light (capacity,) int32 the light row, q_dim (capacity,) int32 the first random
-dimension of the shadow ray. Results: r (R_ROWS, capacity) float64: the vertex x, the
-direction wi to the light, the shadow ray's length and its contribution (0 when none).
+Storage (NeeBatch), for CHUNK requests: q, Q_ROWS rows of CHUNK float64 in one flat array,
+row k of request j at q[k * CHUNK + j], so that each quantity is contiguous (what SIMD loads
+want) and every pair of rows lies a compile-time constant apart: LLVM then proves that the
+loops' loads and stores never overlap without run-time checks (with one 2-D array per
+quantity set it needed hundreds of them and gave up). r: R_ROWS rows the same way, the
+results: the vertex x, the direction wi to the light, the shadow ray's length and its
+contribution (0 when none). q_path (CHUNK,) int32: the path row; q_dim (CHUNK,) int32: the
+first random dimension of the shadow ray.
 """
 
 import math
@@ -50,17 +53,25 @@ CHUNK = 4096 + 8
 
 
 class NeeBatch:
-    """Request and result storage for up to `capacity` next-event vertices."""
+    """Request and result storage for CHUNK next-event vertices (see the module)."""
 
-    def __init__(self, capacity: int):
-        self.q = np.zeros((Q_ROWS, capacity), np.float64)
-        self.q_path = np.zeros(capacity, np.int32)
-        self.q_light = np.zeros(capacity, np.int32)
-        self.q_dim = np.zeros(capacity, np.int32)
-        self.r = np.zeros((R_ROWS, capacity), np.float64)
+    def __init__(self):
+        self.q = np.zeros(Q_ROWS * CHUNK, np.float64)
+        self.q_path = np.zeros(CHUNK, np.int32)
+        self.q_dim = np.zeros(CHUNK, np.int32)
+        self.r = np.zeros(R_ROWS * CHUNK, np.float64)
 
     def arrays(self):
-        return self.q, self.q_path, self.q_light, self.q_dim, self.r
+        return self.q, self.q_path, self.q_dim, self.r
+
+
+@inline_kernel
+def result(r, j):
+    """(x, wi, length, contribution) of request j after connect_all."""
+    x = (r[R_X * CHUNK + j], r[(R_X + 1) * CHUNK + j], r[(R_X + 2) * CHUNK + j])
+    wi = (r[R_WI * CHUNK + j], r[(R_WI + 1) * CHUNK + j], r[(R_WI + 2) * CHUNK + j])
+    c = (r[R_C * CHUNK + j], r[(R_C + 1) * CHUNK + j], r[(R_C + 2) * CHUNK + j])
+    return x, wi, r[R_LENGTH * CHUNK + j], c
 
 
 @inline_kernel
@@ -70,47 +81,46 @@ def qualifies(lt, light, stack):
 
 @inline_kernel
 def _put3(a, row, j, v):
-    a[row, j] = v[0]
-    a[row + 1, j] = v[1]
-    a[row + 2, j] = v[2]
+    a[row * CHUNK + j] = v[0]
+    a[(row + 1) * CHUNK + j] = v[1]
+    a[(row + 2) * CHUNK + j] = v[2]
 
 
 @inline_kernel
 def record(nb, j, path, lt, light, o, d, tmax, lp, beta, seg, p, u, g, use_equiangular, dim):
     """Store request j. seg = homogeneous.segment's (sigma_a, sigma_s, sigma_t, T, 1 - T);
     u = (u_technique, u_channel, u_t, u1, u2); dim: the shadow ray's first dimension."""
-    q, q_path, q_light, q_dim, _ = nb
+    q, q_path, q_dim, _ = nb
     _put3(q, Q_O, j, o)
     _put3(q, Q_D, j, d)
-    q[Q_TMAX, j] = tmax
+    q[Q_TMAX * CHUNK + j] = tmax
     _put3(q, Q_LP, j, lp)
     _put3(q, Q_BETA, j, beta)
     _put3(q, Q_ST, j, seg[2])
     _put3(q, Q_SS, j, seg[1])
     _put3(q, Q_MISS, j, seg[4])
     _put3(q, Q_P, j, p)
-    q[Q_U_TECHNIQUE, j] = u[0]
-    q[Q_U_CHANNEL, j] = u[1]
-    q[Q_U_T, j] = u[2]
-    q[Q_U1, j] = u[3]
-    q[Q_U2, j] = u[4]
-    q[Q_G, j] = g
-    q[Q_EQUIANGULAR, j] = 1.0 if use_equiangular else 0.0
+    q[Q_U_TECHNIQUE * CHUNK + j] = u[0]
+    q[Q_U_CHANNEL * CHUNK + j] = u[1]
+    q[Q_U_T * CHUNK + j] = u[2]
+    q[Q_U1 * CHUNK + j] = u[3]
+    q[Q_U2 * CHUNK + j] = u[4]
+    q[Q_G * CHUNK + j] = g
+    q[Q_EQUIANGULAR * CHUNK + j] = 1.0 if use_equiangular else 0.0
     q_path[j] = path
-    q_light[j] = light
     q_dim[j] = dim
     # The light's data too: the SIMD loop then reads only rows at j (a gather by light index
     # would keep LLVM from bounding the loop's memory accesses, and so from vectorising it).
     pos, vec_a, vec_b, color, color_b, param, pmf = lt[1], lt[2], lt[3], lt[4], lt[5], lt[6], lt[7]
     for k in range(3):
         p0 = np.float64(pos[light, k])
-        q[Q_P0 + k, j] = p0
-        q[Q_P1 + k, j] = p0 + np.float64(vec_a[light, k])
-        q[Q_P2 + k, j] = p0 + np.float64(vec_b[light, k])
-        q[Q_LE_FRONT + k, j] = color[light, k]
-        q[Q_LE_BACK + k, j] = color_b[light, k]
-    q[Q_AREA, j] = param[light, 0]
-    q[Q_PMF, j] = pmf[light]
+        q[(Q_P0 + k) * CHUNK + j] = p0
+        q[(Q_P1 + k) * CHUNK + j] = p0 + np.float64(vec_a[light, k])
+        q[(Q_P2 + k) * CHUNK + j] = p0 + np.float64(vec_b[light, k])
+        q[(Q_LE_FRONT + k) * CHUNK + j] = color[light, k]
+        q[(Q_LE_BACK + k) * CHUNK + j] = color_b[light, k]
+    q[Q_AREA * CHUNK + j] = param[light, 0]
+    q[Q_PMF * CHUNK + j] = pmf[light]
 
 
 # The maths below restates, without branches, media/nee.py (nee_vertex_on),
@@ -152,31 +162,31 @@ def _optical_depth(sigma, t):
 @inline_kernel
 def _vertex(q, j):
     """(t, weight3, valid) of the next-event vertex on [0, tmax) (media.nee.nee_vertex_on)."""
-    ox, oy, oz = q[Q_O, j], q[Q_O + 1, j], q[Q_O + 2, j]
-    dx, dy, dz = q[Q_D, j], q[Q_D + 1, j], q[Q_D + 2, j]
-    tmax = q[Q_TMAX, j]
-    st0, st1, st2 = q[Q_ST, j], q[Q_ST + 1, j], q[Q_ST + 2, j]
-    ss0, ss1, ss2 = q[Q_SS, j], q[Q_SS + 1, j], q[Q_SS + 2, j]
-    m0, m1, m2 = q[Q_MISS, j], q[Q_MISS + 1, j], q[Q_MISS + 2, j]
-    p0, p1, p2 = q[Q_P, j], q[Q_P + 1, j], q[Q_P + 2, j]
-    use_eq = q[Q_EQUIANGULAR, j] != 0.0
+    ox, oy, oz = q[Q_O * CHUNK + j], q[(Q_O + 1) * CHUNK + j], q[(Q_O + 2) * CHUNK + j]
+    dx, dy, dz = q[Q_D * CHUNK + j], q[(Q_D + 1) * CHUNK + j], q[(Q_D + 2) * CHUNK + j]
+    tmax = q[Q_TMAX * CHUNK + j]
+    st0, st1, st2 = q[Q_ST * CHUNK + j], q[(Q_ST + 1) * CHUNK + j], q[(Q_ST + 2) * CHUNK + j]
+    ss0, ss1, ss2 = q[Q_SS * CHUNK + j], q[(Q_SS + 1) * CHUNK + j], q[(Q_SS + 2) * CHUNK + j]
+    m0, m1, m2 = q[Q_MISS * CHUNK + j], q[(Q_MISS + 1) * CHUNK + j], q[(Q_MISS + 2) * CHUNK + j]
+    p0, p1, p2 = q[Q_P * CHUNK + j], q[(Q_P + 1) * CHUNK + j], q[(Q_P + 2) * CHUNK + j]
+    use_eq = q[Q_EQUIANGULAR * CHUNK + j] != 0.0
     # Equiangular frame toward the light point.
-    lx, ly, lz = q[Q_LP, j] - ox, q[Q_LP + 1, j] - oy, q[Q_LP + 2, j] - oz
+    lx, ly, lz = q[Q_LP * CHUNK + j] - ox, q[(Q_LP + 1) * CHUNK + j] - oy, q[(Q_LP + 2) * CHUNK + j] - oz
     delta = lx * dx + ly * dy + lz * dz
     px, py, pz = lx - delta * dx, ly - delta * dy, lz - delta * dz
     big_d = max(math.sqrt(px * px + py * py + pz * pz), D_FLOOR * abs(delta), D_MIN)
     theta_d = sm.atan2(big_d * tmax, big_d * big_d - delta * (tmax - delta))
     degenerate = not theta_d >= MIN_THETA
-    u_t = q[Q_U_T, j]
+    u_t = q[Q_U_T * CHUNK + j]
     sin_phi, cos_phi = sm.sincos(u_t * theta_d)
     denom = big_d * cos_phi + delta * sin_phi
     t_eq = min(max((delta * delta + big_d * big_d) * sin_phi / denom, 0.0), tmax)
     t_eq = tmax if denom <= 0.0 else t_eq
     t_eq = u_t * tmax if degenerate else t_eq
     # Truncated free flight in the channel chosen by p.
-    c = _channel(p0, p1, p2, q[Q_U_CHANNEL, j])
+    c = _channel(p0, p1, p2, q[Q_U_CHANNEL * CHUNK + j])
     t_ff = _truncated_sample(_pick(c, st0, st1, st2), tmax, _pick(c, m0, m1, m2), u_t)
-    t = t_eq if (use_eq and q[Q_U_TECHNIQUE, j] < 0.5) else t_ff
+    t = t_eq if (use_eq and q[Q_U_TECHNIQUE * CHUNK + j] < 0.5) else t_ff
     tr0 = sm.exp_neg(_optical_depth(st0, t))
     tr1 = sm.exp_neg(_optical_depth(st1, t))
     tr2 = sm.exp_neg(_optical_depth(st2, t))
@@ -246,10 +256,10 @@ def _solid_angle_direction(a, b, c, omega, u1, u2):
 def _connect_triangle(q, j, x, u1, u2):
     """(wi, dist, back_side, pdf) of lights.sample.connect_light for a triangle light; pdf 0
     when there is no connection."""
-    p0 = (q[Q_P0, j], q[Q_P0 + 1, j], q[Q_P0 + 2, j])
-    p1 = (q[Q_P1, j], q[Q_P1 + 1, j], q[Q_P1 + 2, j])
-    p2 = (q[Q_P2, j], q[Q_P2 + 1, j], q[Q_P2 + 2, j])
-    lp = (q[Q_LP, j], q[Q_LP + 1, j], q[Q_LP + 2, j])
+    p0 = (q[Q_P0 * CHUNK + j], q[(Q_P0 + 1) * CHUNK + j], q[(Q_P0 + 2) * CHUNK + j])
+    p1 = (q[Q_P1 * CHUNK + j], q[(Q_P1 + 1) * CHUNK + j], q[(Q_P1 + 2) * CHUNK + j])
+    p2 = (q[Q_P2 * CHUNK + j], q[(Q_P2 + 1) * CHUNK + j], q[(Q_P2 + 2) * CHUNK + j])
+    lp = (q[Q_LP * CHUNK + j], q[(Q_LP + 1) * CHUNK + j], q[(Q_LP + 2) * CHUNK + j])
     e1 = (p1[0] - p0[0], p1[1] - p0[1], p1[2] - p0[2])
     e2 = (p2[0] - p0[0], p2[1] - p0[1], p2[2] - p0[2])
     # Gate: solid angle estimated from the centroid (lights.sample._near).
@@ -278,7 +288,7 @@ def _connect_triangle(q, j, x, u1, u2):
     inv = 1.0 / dist_a if dist_a > 0.0 else 0.0
     w_a = (tx * inv, ty * inv, tz * inv)
     cos_a = -_dot(w_a, n)
-    area = q[Q_AREA, j]
+    area = q[Q_AREA * CHUNK + j]
     ok_a = dist_a > 0.0 and abs(cos_a) >= 1e-8 and area > 0.0
     pdf_a = dist_a * dist_a / (area * abs(cos_a)) if ok_a else 0.0
     wi = w_sa if solid else w_a
@@ -299,15 +309,15 @@ def _hg(g, cos_theta):
 @kernel
 def vertices(n, nb):
     """Stage 1: the next-event vertex x of requests 0..n-1 and its weight (0 when none)."""
-    q, _, _, _, r = nb
+    q, _, _, r = nb
     for j in range(n):
         t, wn, valid = _vertex(q, j)
-        r[R_X, j] = q[Q_O, j] + t * q[Q_D, j]
-        r[R_X + 1, j] = q[Q_O + 1, j] + t * q[Q_D + 1, j]
-        r[R_X + 2, j] = q[Q_O + 2, j] + t * q[Q_D + 2, j]
-        r[R_C, j] = wn[0] if valid else 0.0
-        r[R_C + 1, j] = wn[1] if valid else 0.0
-        r[R_C + 2, j] = wn[2] if valid else 0.0
+        r[R_X * CHUNK + j] = q[Q_O * CHUNK + j] + t * q[Q_D * CHUNK + j]
+        r[(R_X + 1) * CHUNK + j] = q[(Q_O + 1) * CHUNK + j] + t * q[(Q_D + 1) * CHUNK + j]
+        r[(R_X + 2) * CHUNK + j] = q[(Q_O + 2) * CHUNK + j] + t * q[(Q_D + 2) * CHUNK + j]
+        r[R_C * CHUNK + j] = wn[0] if valid else 0.0
+        r[(R_C + 1) * CHUNK + j] = wn[1] if valid else 0.0
+        r[(R_C + 2) * CHUNK + j] = wn[2] if valid else 0.0
 
 
 @kernel
@@ -317,34 +327,34 @@ def connections(n, nb, mis, with_transmittance):
     shadow ray's transmittance exp(-sigma_t length) (valid when no interface can lie on a
     shadow ray, so its medium is the request's all along; the integrator then leaves the
     ray out of shadow_media)."""
-    q, _, _, _, r = nb
+    q, _, _, r = nb
     for j in range(n):
-        d = (q[Q_D, j], q[Q_D + 1, j], q[Q_D + 2, j])
-        x = (r[R_X, j], r[R_X + 1, j], r[R_X + 2, j])
-        wi, dist, back, pdf = _connect_triangle(q, j, x, q[Q_U1, j], q[Q_U2, j])
+        d = (q[Q_D * CHUNK + j], q[(Q_D + 1) * CHUNK + j], q[(Q_D + 2) * CHUNK + j])
+        x = (r[R_X * CHUNK + j], r[(R_X + 1) * CHUNK + j], r[(R_X + 2) * CHUNK + j])
+        wi, dist, back, pdf = _connect_triangle(q, j, x, q[Q_U1 * CHUNK + j], q[Q_U2 * CHUNK + j])
         # A blend with weights 0 and 1 (exact), not `back ? row_b : row_f`: LLVM turns a
         # select of two loads into a load from a selected address, which it cannot vectorise.
         f = 1.0 if back else 0.0
-        le0 = q[Q_LE_FRONT, j] * (1.0 - f) + q[Q_LE_BACK, j] * f
-        le1 = q[Q_LE_FRONT + 1, j] * (1.0 - f) + q[Q_LE_BACK + 1, j] * f
-        le2 = q[Q_LE_FRONT + 2, j] * (1.0 - f) + q[Q_LE_BACK + 2, j] * f
-        p_light = pdf * q[Q_PMF, j]
-        ph = _hg(q[Q_G, j], _dot(d, wi))
+        le0 = q[Q_LE_FRONT * CHUNK + j] * (1.0 - f) + q[Q_LE_BACK * CHUNK + j] * f
+        le1 = q[(Q_LE_FRONT + 1) * CHUNK + j] * (1.0 - f) + q[(Q_LE_BACK + 1) * CHUNK + j] * f
+        le2 = q[(Q_LE_FRONT + 2) * CHUNK + j] * (1.0 - f) + q[(Q_LE_BACK + 2) * CHUNK + j] * f
+        p_light = pdf * q[Q_PMF * CHUNK + j]
+        ph = _hg(q[Q_G * CHUNK + j], _dot(d, wi))
         a2 = p_light * p_light
         b2 = ph * ph
         w = (a2 / (a2 + b2) if a2 + b2 > 0.0 else 0.0) if mis else 1.0
         k = w / p_light * ph if p_light > 0.0 else 0.0
-        r[R_WI, j] = wi[0]
-        r[R_WI + 1, j] = wi[1]
-        r[R_WI + 2, j] = wi[2]
+        r[R_WI * CHUNK + j] = wi[0]
+        r[(R_WI + 1) * CHUNK + j] = wi[1]
+        r[(R_WI + 2) * CHUNK + j] = wi[2]
         length = dist * 0.9999
-        r[R_LENGTH, j] = length
-        tr0 = sm.exp_neg(_optical_depth(q[Q_ST, j], length)) if with_transmittance else 1.0
-        tr1 = sm.exp_neg(_optical_depth(q[Q_ST + 1, j], length)) if with_transmittance else 1.0
-        tr2 = sm.exp_neg(_optical_depth(q[Q_ST + 2, j], length)) if with_transmittance else 1.0
-        r[R_C, j] = q[Q_BETA, j] * r[R_C, j] * le0 * k * tr0
-        r[R_C + 1, j] = q[Q_BETA + 1, j] * r[R_C + 1, j] * le1 * k * tr1
-        r[R_C + 2, j] = q[Q_BETA + 2, j] * r[R_C + 2, j] * le2 * k * tr2
+        r[R_LENGTH * CHUNK + j] = length
+        tr0 = sm.exp_neg(_optical_depth(q[Q_ST * CHUNK + j], length)) if with_transmittance else 1.0
+        tr1 = sm.exp_neg(_optical_depth(q[(Q_ST + 1) * CHUNK + j], length)) if with_transmittance else 1.0
+        tr2 = sm.exp_neg(_optical_depth(q[(Q_ST + 2) * CHUNK + j], length)) if with_transmittance else 1.0
+        r[R_C * CHUNK + j] = q[Q_BETA * CHUNK + j] * r[R_C * CHUNK + j] * le0 * k * tr0
+        r[(R_C + 1) * CHUNK + j] = q[(Q_BETA + 1) * CHUNK + j] * r[(R_C + 1) * CHUNK + j] * le1 * k * tr1
+        r[(R_C + 2) * CHUNK + j] = q[(Q_BETA + 2) * CHUNK + j] * r[(R_C + 2) * CHUNK + j] * le2 * k * tr2
 
 
 @kernel

@@ -10,7 +10,7 @@ from ..film import Film
 from ..geometry import Intersector
 from ..scene import IntegratorSettings
 from . import kernels as K
-from .nee_batch import CHUNK, NeeBatch
+from .nee_batch import NeeBatch
 from .state import allocate_paths, allocate_shadows
 
 SAMPLING_CODES = {"mis": K.SAMPLING_MIS, "nee": K.SAMPLING_NEE, "bsdf": K.SAMPLING_BSDF}
@@ -75,7 +75,7 @@ class Tracer:
         self.batch = int(settings.batch_size)
         self.ps = allocate_paths(self.batch)
         self.sh = allocate_shadows(self.batch)
-        self.nb = NeeBatch(min(CHUNK, self.batch)).arrays() if cs.has_media else None
+        self.nb = NeeBatch().arrays() if cs.has_media else None
         self.L = np.zeros((self.batch, 3), np.float64)
         self.pixel_of_pid = np.zeros(self.batch, np.int32)
         self.remaining = np.zeros(2 * self.batch, np.float32)
