@@ -6,6 +6,8 @@ the scalar path calls libm: a few units in the last place). The image test rende
 paths both ways; shadow rays are stored in float32, so the images agree to float32 rounding.
 """
 
+import llvmlite.binding as llvm
+import numba
 import numpy as np
 import pytest
 from numba import njit
@@ -133,6 +135,13 @@ def test_render_is_the_same_with_and_without_batching():
         np.testing.assert_allclose(images[0], images[1], rtol=1e-5, atol=0.0)
 
 
+def _targets_avx2() -> bool:
+    features = llvm.get_host_cpu_features()
+    return numba.config.CPU_NAME in (None, "host") and bool(features.get("avx2"))
+
+
+@pytest.mark.skipif(not _targets_avx2(), reason="the speed claim is for AVX2/AVX-512 hosts: for plain "
+                    "SSE2 (NUMBA_CPU_NAME=generic) LLVM's cost model keeps the loops scalar")
 def test_the_batch_loops_compile_to_simd():
     """LLVM vectorises the loops only when nothing in them defeats it (a select between two
     loads, a call, an access it cannot prove disjoint from the stores): a regression would
