@@ -30,12 +30,15 @@ import numpy as np
 
 from renderer.kernels import inline_kernel, kernel
 from renderer.kernels import simdmath as sm
-from renderer.kernels.vecmath import INV_4PI
-from renderer.lights.sample import SOLID_ANGLE_GATE
-from renderer.lights.spherical_triangle import MIN_SOLID_ANGLE
+from renderer.kernels.vecmath import cross, dot, sub
+from renderer.lights.sample import looks_near
+from renderer.lights.spherical_triangle import MIN_SOLID_ANGLE, sample_spherical_triangle, unit_or_zero
 from renderer.lights.table import TRIANGLE
 from renderer.media.equiangular import D_FLOOR, D_MIN, MIN_THETA
+from renderer.media.homogeneous import optical_depth, truncated_pdf
+from renderer.media.spectral import pick_channel
 from renderer.media.stack import EMPTY
+from renderer.phase.hg import hg_eval
 
 Q_O, Q_D, Q_TMAX, Q_LP, Q_BETA = 0, 3, 6, 7, 10
 Q_ST, Q_SS, Q_MISS, Q_P = 13, 16, 19, 22
@@ -123,10 +126,12 @@ def record(nb, j, path, lt, light, o, d, tmax, lp, beta, seg, p, u, g, use_equia
     q[Q_PMF * CHUNK + j] = pmf[light]
 
 
-# The maths below restates, without branches, media/nee.py (nee_vertex_on),
-# media/equiangular.py, media/homogeneous.py (beer, sample_truncated, truncated_pdf),
-# lights/sample.py (connect_light for triangles), lights/spherical_triangle.py and
-# phase/hg.py (hg_eval): every `x if cond else y` compiles to a select.
+# The maths below is media/nee.py's nee_vertex_on and lights/sample.py's connect_light for a
+# triangle, with both branches of each choice computed and one kept by a select. It calls
+# the shared kernels wherever those are already free of calls (pick_channel, optical_depth,
+# truncated_pdf, sample_spherical_triangle, hg_eval) and restates only what is not: the
+# equiangular sampler and free flight (libm fallbacks in fastmath's log1p and atan2, which
+# simdmath leaves out) and the choice between solid-angle and area sampling.
 
 
 @inline_kernel
@@ -135,28 +140,10 @@ def _pick(c, a, b, e):
 
 
 @inline_kernel
-def _channel(p0, p1, p2, u):
-    """media.spectral.pick_channel."""
-    second = u < p0 + p1 or p2 == 0.0
-    return 0 if u < p0 else ((1 if p1 > 0.0 else 0) if second else 2)
-
-
-@inline_kernel
 def _truncated_sample(sigma, tmax, miss, u):
     ok = sigma > 0.0 and miss > 0.0
     t = min(-sm.log1p(-u * miss) / (sigma if ok else 1.0), tmax)
     return t if ok else u * tmax
-
-
-@inline_kernel
-def _truncated_pdf(sigma, tmax, miss, tr_t):
-    ok = sigma > 0.0 and miss > 0.0
-    return sigma * tr_t / (miss if ok else 1.0) if ok else 1.0 / tmax
-
-
-@inline_kernel
-def _optical_depth(sigma, t):
-    return sigma * t if sigma > 0.0 else 0.0
 
 
 @inline_kernel
@@ -184,72 +171,20 @@ def _vertex(q, j):
     t_eq = tmax if denom <= 0.0 else t_eq
     t_eq = u_t * tmax if degenerate else t_eq
     # Truncated free flight in the channel chosen by p.
-    c = _channel(p0, p1, p2, q[Q_U_CHANNEL * CHUNK + j])
+    c = pick_channel((p0, p1, p2), q[Q_U_CHANNEL * CHUNK + j])
     t_ff = _truncated_sample(_pick(c, st0, st1, st2), tmax, _pick(c, m0, m1, m2), u_t)
     t = t_eq if (use_eq and q[Q_U_TECHNIQUE * CHUNK + j] < 0.5) else t_ff
-    tr0 = sm.exp_neg(_optical_depth(st0, t))
-    tr1 = sm.exp_neg(_optical_depth(st1, t))
-    tr2 = sm.exp_neg(_optical_depth(st2, t))
-    pdf = (p0 * _truncated_pdf(st0, tmax, m0, tr0) + p1 * _truncated_pdf(st1, tmax, m1, tr1)
-           + p2 * _truncated_pdf(st2, tmax, m2, tr2))
+    tr0 = sm.exp_neg(optical_depth(st0, t))
+    tr1 = sm.exp_neg(optical_depth(st1, t))
+    tr2 = sm.exp_neg(optical_depth(st2, t))
+    pdf = (p0 * truncated_pdf(st0, tmax, m0, tr0) + p1 * truncated_pdf(st1, tmax, m1, tr1)
+           + p2 * truncated_pdf(st2, tmax, m2, tr2))
     x = t - delta
     pdf_eq = 1.0 / tmax if degenerate else big_d / (theta_d * (big_d * big_d + x * x))
     pdf = 0.5 * pdf + 0.5 * pdf_eq if use_eq else pdf
     valid = (ss0 > 0.0 or ss1 > 0.0 or ss2 > 0.0) and tmax > 0.0
     inv = 1.0 / pdf
     return t, (tr0 * ss0 * inv, tr1 * ss1 * inv, tr2 * ss2 * inv), valid
-
-
-@inline_kernel
-def _unit3(x, y, z):
-    n = math.sqrt(x * x + y * y + z * z)
-    inv = 1.0 / n if n > 0.0 else 0.0
-    return x * inv, y * inv, z * inv
-
-
-@inline_kernel
-def _unit(v):
-    return _unit3(v[0], v[1], v[2])
-
-
-@inline_kernel
-def _cross(a, b):
-    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
-
-
-@inline_kernel
-def _dot(a, b):
-    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-
-
-@inline_kernel
-def _orthogonal_unit(v, axis):
-    k = _dot(v, axis)
-    return _unit3(v[0] - k * axis[0], v[1] - k * axis[1], v[2] - k * axis[2])
-
-
-@inline_kernel
-def _solid_angle_direction(a, b, c, omega, u1, u2):
-    """lights.spherical_triangle.sample_spherical_triangle (Arvo 1995)."""
-    n_ab = _unit(_cross(a, b))
-    n_ac = _unit(_cross(a, c))
-    cos_alpha = min(max(_dot(n_ab, n_ac), -1.0), 1.0)
-    sin_alpha = math.sqrt(max(0.0, 1.0 - cos_alpha * cos_alpha))
-    sin_area, cos_area = sm.sincos(u1 * omega)
-    s = sin_area * cos_alpha - cos_area * sin_alpha
-    t = cos_area * cos_alpha + sin_area * sin_alpha
-    u = t - cos_alpha
-    v = s + sin_alpha * _dot(a, b)
-    denom = (v * s + u * t) * sin_alpha
-    q = ((v * t - u * s) * cos_alpha - v) / (denom if denom != 0.0 else 1.0)
-    q = min(max(q if denom != 0.0 else 1.0, -1.0), 1.0)
-    o = _orthogonal_unit(c, a)
-    r = math.sqrt(max(0.0, 1.0 - q * q))
-    c_new = (q * a[0] + r * o[0], q * a[1] + r * o[1], q * a[2] + r * o[2])
-    z = min(max(1.0 - u2 * (1.0 - _dot(c_new, b)), -1.0), 1.0)
-    o = _orthogonal_unit(c_new, b)
-    r = math.sqrt(max(0.0, 1.0 - z * z))
-    return _unit3(z * b[0] + r * o[0], z * b[1] + r * o[1], z * b[2] + r * o[2])
 
 
 @inline_kernel
@@ -260,25 +195,16 @@ def _connect_triangle(q, j, x, u1, u2):
     p1 = (q[Q_P1 * CHUNK + j], q[(Q_P1 + 1) * CHUNK + j], q[(Q_P1 + 2) * CHUNK + j])
     p2 = (q[Q_P2 * CHUNK + j], q[(Q_P2 + 1) * CHUNK + j], q[(Q_P2 + 2) * CHUNK + j])
     lp = (q[Q_LP * CHUNK + j], q[(Q_LP + 1) * CHUNK + j], q[(Q_LP + 2) * CHUNK + j])
-    e1 = (p1[0] - p0[0], p1[1] - p0[1], p1[2] - p0[2])
-    e2 = (p2[0] - p0[0], p2[1] - p0[1], p2[2] - p0[2])
-    # Gate: solid angle estimated from the centroid (lights.sample._near).
-    n2 = _cross(e1, e2)
-    third = 1.0 / 3.0
-    cx = (p0[0] + p1[0] + p2[0]) * third - x[0]
-    cy = (p0[1] + p1[1] + p2[1]) * third - x[1]
-    cz = (p0[2] + p1[2] + p2[2]) * third - x[2]
-    r2 = cx * cx + cy * cy + cz * cz
-    near = abs(n2[0] * cx + n2[1] * cy + n2[2] * cz) >= 2.0 * SOLID_ANGLE_GATE * r2 * math.sqrt(r2)
+    near = looks_near(x, p0, p1, p2)
     # Solid angle and Arvo's direction.
-    a = _unit3(p0[0] - x[0], p0[1] - x[1], p0[2] - x[2])
-    b = _unit3(p1[0] - x[0], p1[1] - x[1], p1[2] - x[2])
-    c = _unit3(p2[0] - x[0], p2[1] - x[1], p2[2] - x[2])
-    omega = 2.0 * sm.atan2(abs(_dot(a, _cross(b, c))), 1.0 + _dot(a, b) + _dot(b, c) + _dot(c, a))
+    a = unit_or_zero(sub(p0, x))
+    b = unit_or_zero(sub(p1, x))
+    c = unit_or_zero(sub(p2, x))
+    omega = 2.0 * sm.atan2(abs(dot(a, cross(b, c))), 1.0 + dot(a, b) + dot(b, c) + dot(c, a))
     solid = near and omega >= MIN_SOLID_ANGLE and omega < math.inf
-    w_sa = _solid_angle_direction(a, b, c, omega, u1, u2)
-    n = _unit(n2)
-    cos_sa = -_dot(w_sa, n)
+    w_sa = sample_spherical_triangle(a, b, c, omega, u1, u2)
+    n = unit_or_zero(cross(sub(p1, p0), sub(p2, p0)))
+    cos_sa = -dot(w_sa, n)
     dist_sa = ((x[0] - p0[0]) * n[0] + (x[1] - p0[1]) * n[1] + (x[2] - p0[2]) * n[2]) / (
         cos_sa if cos_sa != 0.0 else 1.0)
     ok_sa = cos_sa != 0.0 and dist_sa > 0.0 and dist_sa < math.inf
@@ -287,7 +213,7 @@ def _connect_triangle(q, j, x, u1, u2):
     dist_a = math.sqrt(tx * tx + ty * ty + tz * tz)
     inv = 1.0 / dist_a if dist_a > 0.0 else 0.0
     w_a = (tx * inv, ty * inv, tz * inv)
-    cos_a = -_dot(w_a, n)
+    cos_a = -dot(w_a, n)
     area = q[Q_AREA * CHUNK + j]
     ok_a = dist_a > 0.0 and abs(cos_a) >= 1e-8 and area > 0.0
     pdf_a = dist_a * dist_a / (area * abs(cos_a)) if ok_a else 0.0
@@ -296,14 +222,6 @@ def _connect_triangle(q, j, x, u1, u2):
     cos_l = cos_sa if solid else cos_a
     pdf = (1.0 / omega if ok_sa else 0.0) if solid else pdf_a
     return wi, dist, cos_l < 0.0, pdf
-
-
-@inline_kernel
-def _hg(g, cos_theta):
-    """phase.hg.hg_eval."""
-    denom = ((1.0 - g) * (1.0 - g) + 2.0 * g * (1.0 - cos_theta) if g >= 0.0
-             else (1.0 + g) * (1.0 + g) - 2.0 * g * (1.0 + cos_theta))
-    return INV_4PI * (1.0 - g * g) / (denom * math.sqrt(denom))
 
 
 @kernel
@@ -339,7 +257,7 @@ def connections(n, nb, mis, with_transmittance):
         le1 = q[(Q_LE_FRONT + 1) * CHUNK + j] * (1.0 - f) + q[(Q_LE_BACK + 1) * CHUNK + j] * f
         le2 = q[(Q_LE_FRONT + 2) * CHUNK + j] * (1.0 - f) + q[(Q_LE_BACK + 2) * CHUNK + j] * f
         p_light = pdf * q[Q_PMF * CHUNK + j]
-        ph = _hg(q[Q_G * CHUNK + j], _dot(d, wi))
+        ph = hg_eval(q[Q_G * CHUNK + j], dot(d, wi))
         a2 = p_light * p_light
         b2 = ph * ph
         w = (a2 / (a2 + b2) if a2 + b2 > 0.0 else 0.0) if mis else 1.0
@@ -349,9 +267,9 @@ def connections(n, nb, mis, with_transmittance):
         r[(R_WI + 2) * CHUNK + j] = wi[2]
         length = dist * 0.9999
         r[R_LENGTH * CHUNK + j] = length
-        tr0 = sm.exp_neg(_optical_depth(q[Q_ST * CHUNK + j], length)) if with_transmittance else 1.0
-        tr1 = sm.exp_neg(_optical_depth(q[(Q_ST + 1) * CHUNK + j], length)) if with_transmittance else 1.0
-        tr2 = sm.exp_neg(_optical_depth(q[(Q_ST + 2) * CHUNK + j], length)) if with_transmittance else 1.0
+        tr0 = sm.exp_neg(optical_depth(q[Q_ST * CHUNK + j], length)) if with_transmittance else 1.0
+        tr1 = sm.exp_neg(optical_depth(q[(Q_ST + 1) * CHUNK + j], length)) if with_transmittance else 1.0
+        tr2 = sm.exp_neg(optical_depth(q[(Q_ST + 2) * CHUNK + j], length)) if with_transmittance else 1.0
         r[R_C * CHUNK + j] = q[Q_BETA * CHUNK + j] * r[R_C * CHUNK + j] * le0 * k * tr0
         r[(R_C + 1) * CHUNK + j] = q[(Q_BETA + 1) * CHUNK + j] * r[(R_C + 1) * CHUNK + j] * le1 * k * tr1
         r[(R_C + 2) * CHUNK + j] = q[(Q_BETA + 2) * CHUNK + j] * r[(R_C + 2) * CHUNK + j] * le2 * k * tr2

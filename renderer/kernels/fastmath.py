@@ -15,7 +15,9 @@ sampler and its pdf stay consistent far below any Monte Carlo noise. Each functi
 textbook reduction and a truncated Taylor (or atanh/atan) series, so every coefficient is a
 rational number written as one, and the truncation error is the next term of the series
 (stated at each function). Arguments outside the reduced ranges (NaN, inf, huge angles,
-subnormals) go to libm, so behaviour there is libm's.
+subnormals) go to libm, so behaviour there is libm's. The series themselves are branch-free
+(log_normal, atan2_finite, sincos_reduced: cases chosen by selects), so that loops which
+call them can be vectorised (renderer.kernels.simdmath).
 """
 
 import math
@@ -63,18 +65,16 @@ def _bits_from_f64(typingctx, x):
 
 
 @inline_kernel
-def log(x):
-    """Natural log of x > 0. x = m 2^e with m in [sqrt(1/2), sqrt(2)); with f = (m - 1) /
-    (m + 1), log m = 2 atanh f = 2 (f + f^3/3 + ... + f^19/19) (|f| <= 0.172, next term
-    < 4e-17 relative). Zero, negatives, subnormals, inf and NaN go to libm."""
-    if not (2.2250738585072014e-308 <= x < math.inf):
-        return math.log(x) if x > 0.0 else (-math.inf if x == 0.0 else math.nan)
+def log_normal(x):
+    """Natural log of a normal double x > 0, without branches. x = m 2^e with m in
+    [sqrt(1/2), sqrt(2)); with f = (m - 1) / (m + 1), log m = 2 atanh f = 2 (f + f^3/3 + ... +
+    f^19/19) (|f| <= 0.172, next term < 4e-17 relative)."""
     bits = _bits_from_f64(x)
     e = (bits >> 52) - 1023
     m = _f64_from_bits((bits & _MANTISSA) | _EXPONENT_ONE)
-    if m > SQRT2:
-        m *= 0.5
-        e += 1
+    big = m > SQRT2
+    m = m * 0.5 if big else m
+    e = e + 1 if big else e
     f = (m - 1.0) / (m + 1.0)
     s = f * f
     p = 1.0 / 19.0
@@ -88,6 +88,14 @@ def log(x):
     p = p * s + 1.0 / 3.0
     log_m = 2.0 * f + 2.0 * f * s * p
     return e * LN2_HI + (log_m + e * LN2_LO)
+
+
+@inline_kernel
+def log(x):
+    """Natural log of x > 0 (log_normal); zero, negatives, subnormals, inf and NaN go to libm."""
+    if not (2.2250738585072014e-308 <= x < math.inf):
+        return math.log(x) if x > 0.0 else (-math.inf if x == 0.0 else math.nan)
+    return log_normal(x)
 
 
 @inline_kernel
@@ -120,41 +128,39 @@ def _atan_series(w):
 
 
 @inline_kernel
-def _atan_unit(z):
-    """atan(z) for z in [0, 1]: atan z = c + atan((z - tan c) / (1 + z tan c)) with c the
-    multiple of pi/8 nearest atan z, which leaves |argument| <= tan(pi/16)."""
-    if z <= TAN_PI_16:
-        return _atan_series(z)
-    if z <= TAN_3PI_16:
-        return math.pi / 8.0 + _atan_series((z - TAN_PI_8) / (1.0 + z * TAN_PI_8))
-    return math.pi / 4.0 + _atan_series((z - 1.0) / (1.0 + z))
+def atan2_finite(y, x):
+    """atan2 for finite (x, y) not both 0 (then NaN), without branches. atan z for z =
+    min / max in [0, 1] is c + atan((z - tan c) / (1 + z tan c)) with c the multiple of pi/8
+    nearest atan z, which leaves |argument| <= tan(pi/16); c = 0 gives z / 1 = z exactly."""
+    ax = abs(x)
+    ay = abs(y)
+    z = min(ax, ay) / max(ax, ay)
+    mid = z > TAN_PI_16
+    high = z > TAN_3PI_16
+    tan_c = 1.0 if high else (TAN_PI_8 if mid else 0.0)
+    c = math.pi / 4.0 if high else (math.pi / 8.0 if mid else 0.0)
+    a = c + _atan_series((z - tan_c) / (1.0 + z * tan_c))
+    a = math.pi / 2.0 - a if ay > ax else a
+    a = math.pi - a if x < 0.0 else a
+    return -a if y < 0.0 else a
 
 
 @inline_kernel
 def atan2(y, x):
     """The angle of (x, y) in [-pi, pi], as math.atan2 for finite arguments (signed zeros
-    aside: atan2(+-0, -0) gives +-pi only through libm). Infinite or NaN arguments go to libm."""
-    ax = abs(x)
-    ay = abs(y)
-    big = max(ax, ay)
+    aside: atan2(+-0, -0) gives +-pi only through libm). Infinite or NaN arguments, and
+    (0, 0), go to libm."""
+    big = max(abs(x), abs(y))
     if not (0.0 < big < math.inf):
         return math.atan2(y, x)
-    swap = ay > ax
-    a = _atan_unit(min(ax, ay) / big)
-    if swap:
-        a = math.pi / 2.0 - a
-    if x < 0.0:
-        a = math.pi - a
-    return -a if y < 0.0 else a
+    return atan2_finite(y, x)
 
 
 @inline_kernel
-def sincos(x):
-    """(sin x, cos x). x = q pi/2 + r with |r| <= pi/4 (two-part pi/2, exact for |q| < 2^20);
-    sin r to r^15/15! and cos r to r^16/16! (next terms < 5e-17). |x| >= 1e5 and NaN go to
-    libm (the renderer's angles are below 4 pi)."""
-    if not abs(x) < 1e5:
-        return math.sin(x), math.cos(x)
+def sincos_reduced(x):
+    """(sin x, cos x) for |x| < 1e5, without branches. x = q pi/2 + r with |r| <= pi/4
+    (two-part pi/2, exact for |q| < 2^20); sin r to r^15/15! and cos r to r^16/16! (next
+    terms < 5e-17)."""
     q = math.floor(x * TWO_OVER_PI + 0.5)
     r = (x - q * PIO2_HI) - q * PIO2_LO
     s = r * r
@@ -176,10 +182,18 @@ def sincos(x):
     pc = pc * s - 0.5
     cos_r = 1.0 + s * pc
     quadrant = int(q) & 3
-    if quadrant == 0:
-        return sin_r, cos_r
-    if quadrant == 1:
-        return cos_r, -sin_r
-    if quadrant == 2:
-        return -sin_r, -cos_r
-    return -cos_r, sin_r
+    odd = (quadrant & 1) == 1
+    sin_x = cos_r if odd else sin_r
+    cos_x = sin_r if odd else cos_r
+    sin_x = -sin_x if quadrant >= 2 else sin_x
+    cos_x = -cos_x if (quadrant == 1 or quadrant == 2) else cos_x
+    return sin_x, cos_x
+
+
+@inline_kernel
+def sincos(x):
+    """(sin x, cos x) (sincos_reduced); |x| >= 1e5 and NaN go to libm (the renderer's angles
+    are below 4 pi)."""
+    if not abs(x) < 1e5:
+        return math.sin(x), math.cos(x)
+    return sincos_reduced(x)

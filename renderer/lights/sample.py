@@ -19,7 +19,7 @@ from ..kernels.vecmath import INV_4PI, add, cross, dot, length, normalize, onb, 
 from .spherical_triangle import sample_spherical_triangle, spherical_triangle, use_solid_angle
 from .table import POINT, SPOT, SUN, TRIANGLE
 
-SOLID_ANGLE_GATE = 0.05  # sr; see _near
+SOLID_ANGLE_GATE = 0.05  # sr; see looks_near
 
 
 @inline_kernel
@@ -89,7 +89,7 @@ def _triangle(lt, light):
 
 
 @inline_kernel
-def _near(x, p0, p1, p2):
+def looks_near(x, p0, p1, p2):
     """Whether the triangle light p0 p1 p2 looks big from x: its solid angle estimated from the
     centroid, A |cos| / r^2, at least SOLID_ANGLE_GATE. Far triangles keep area sampling,
     which is as good there and cheaper (the exact solid angle and Arvo's sampler cost about
@@ -129,7 +129,7 @@ def connect_light(lt, light, lp, x, u1, u2):
     c = (float(color[light, 0]), float(color[light, 1]), float(color[light, 2]))
     if k == TRIANGLE:
         p0, p1, p2 = _triangle(lt, light)
-        if _near(x, p0, p1, p2):
+        if looks_near(x, p0, p1, p2):
             omega, a, b, cv = spherical_triangle(x, p0, p1, p2)
             if use_solid_angle(omega):
                 wi = sample_spherical_triangle(a, b, cv, omega, u1, u2)
@@ -205,7 +205,7 @@ def triangle_light_pdf(lt, light, x, p, cos_l):
     """Solid-angle pdf, with selection, of light-sampling point p on triangle light `light`
     from x, where cos_l is the cosine at the light."""
     p0, p1, p2 = _triangle(lt, light)
-    if _near(x, p0, p1, p2):
+    if looks_near(x, p0, p1, p2):
         omega = spherical_triangle(x, p0, p1, p2)[0]
         if use_solid_angle(omega):
             return lt[7][light] / omega

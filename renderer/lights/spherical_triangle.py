@@ -28,7 +28,8 @@ MIN_SOLID_ANGLE = 1e-4  # steradians
 
 
 @inline_kernel
-def _unit(v):
+def unit_or_zero(v):
+    """v / |v|, or the zero vector for v = 0."""
     n = length(v)
     return scale(v, 1.0 / n) if n > 0.0 else (0.0, 0.0, 0.0)
 
@@ -37,9 +38,9 @@ def _unit(v):
 def spherical_triangle(x, p0, p1, p2):
     """(omega, a, b, c): the solid angle (sr) subtended at x by the triangle p0 p1 p2 (0 when
     x is in its plane, outside it) and the unit vectors from x to its vertices."""
-    a = _unit(sub(p0, x))
-    b = _unit(sub(p1, x))
-    c = _unit(sub(p2, x))
+    a = unit_or_zero(sub(p0, x))
+    b = unit_or_zero(sub(p1, x))
+    c = unit_or_zero(sub(p2, x))
     triple = abs(dot(a, cross(b, c)))
     return 2.0 * fm.atan2(triple, 1.0 + dot(a, b) + dot(b, c) + dot(c, a)), a, b, c
 
@@ -57,7 +58,7 @@ def use_solid_angle(omega):
 @inline_kernel
 def _orthogonal_unit(v, axis):
     """The unit component of v orthogonal to the unit vector axis."""
-    return _unit(madd(v, axis, -dot(v, axis)))
+    return unit_or_zero(madd(v, axis, -dot(v, axis)))
 
 
 @inline_kernel
@@ -72,13 +73,15 @@ def sample_direction(x, p0, p1, p2, omega, u1, u2):
 def sample_spherical_triangle(a, b, c, omega, u1, u2):
     """sample_direction given the unit vertex directions a, b, c and the solid angle."""
     # Interior angle alpha at vertex a, between the great circles ab and ac.
-    n_ab = _unit(cross(a, b))
-    n_ac = _unit(cross(a, c))
+    n_ab = unit_or_zero(cross(a, b))
+    n_ac = unit_or_zero(cross(a, c))
     cos_alpha = min(max(dot(n_ab, n_ac), -1.0), 1.0)
     sin_alpha = math.sqrt(max(0.0, 1.0 - cos_alpha * cos_alpha))
     # Sub-triangle a b c' of area u1 omega: sin and cos of (area - alpha), expanded.
     area = u1 * omega
-    sin_area, cos_area = fm.sincos(area)
+    # area <= 4 pi, so the series needs no range check: without its libm branch this
+    # function also runs inside the SIMD loops of renderer.integrator.nee_batch.
+    sin_area, cos_area = fm.sincos_reduced(area)
     s = sin_area * cos_alpha - cos_area * sin_alpha
     t = cos_area * cos_alpha + sin_area * sin_alpha
     u = t - cos_alpha
@@ -90,4 +93,4 @@ def sample_spherical_triangle(a, b, c, omega, u1, u2):
     # A point on the arc b c' with its cosine toward b uniform.
     z = 1.0 - u2 * (1.0 - dot(c_new, b))
     z = min(max(z, -1.0), 1.0)
-    return _unit(madd(scale(b, z), _orthogonal_unit(c_new, b), math.sqrt(max(0.0, 1.0 - z * z))))
+    return unit_or_zero(madd(scale(b, z), _orthogonal_unit(c_new, b), math.sqrt(max(0.0, 1.0 - z * z))))
