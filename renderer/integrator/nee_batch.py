@@ -189,12 +189,19 @@ def _vertex(q, j):
 
 @inline_kernel
 def _connect_triangle(q, j, x, u1, u2):
-    """(wi, dist, back_side, pdf) of lights.sample.connect_light for a triangle light; pdf 0
-    when there is no connection."""
+    """connect_triangle for request j's light."""
     p0 = (q[Q_P0 * CHUNK + j], q[(Q_P0 + 1) * CHUNK + j], q[(Q_P0 + 2) * CHUNK + j])
     p1 = (q[Q_P1 * CHUNK + j], q[(Q_P1 + 1) * CHUNK + j], q[(Q_P1 + 2) * CHUNK + j])
     p2 = (q[Q_P2 * CHUNK + j], q[(Q_P2 + 1) * CHUNK + j], q[(Q_P2 + 2) * CHUNK + j])
     lp = (q[Q_LP * CHUNK + j], q[(Q_LP + 1) * CHUNK + j], q[(Q_LP + 2) * CHUNK + j])
+    return connect_triangle(p0, p1, p2, lp, q[Q_AREA * CHUNK + j], x, u1, u2)
+
+
+@inline_kernel
+def connect_triangle(p0, p1, p2, lp, area, x, u1, u2):
+    """(wi, dist, back_side, pdf) of lights.sample.connect_light for the triangle light
+    p0 p1 p2 of the given area (lp: its area-sampled point), without branches, so that a
+    loop calling it vectorises; pdf 0 when there is no connection."""
     near = looks_near(x, p0, p1, p2)
     # Solid angle and Arvo's direction.
     a = unit_or_zero(sub(p0, x))
@@ -214,7 +221,6 @@ def _connect_triangle(q, j, x, u1, u2):
     inv = 1.0 / dist_a if dist_a > 0.0 else 0.0
     w_a = (tx * inv, ty * inv, tz * inv)
     cos_a = -dot(w_a, n)
-    area = q[Q_AREA * CHUNK + j]
     ok_a = dist_a > 0.0 and abs(cos_a) >= 1e-8 and area > 0.0
     pdf_a = dist_a * dist_a / (area * abs(cos_a)) if ok_a else 0.0
     wi = w_sa if solid else w_a
