@@ -17,45 +17,44 @@ from renderer.compile import compile_scene
 from renderer.film import Film
 from renderer.integrator import kernels as K
 from renderer.integrator import nee_batch as NB
+from renderer.integrator.dims import SEG_FREE_FLIGHT, SEG_LIGHT, SEG_VERTEX
 from renderer.integrator.wavefront import Tracer
 from renderer.kernels import JIT_OPTIONS
 from renderer.kernels.rng import path_key, uniform
-from renderer.kernels.vecmath import dot, max3
+from renderer.kernels.vecmath import dot, madd, max3, mul, scale
 from renderer.lights.sample import connect_light, light_point
 from renderer.media.homogeneous import segment
+from renderer.media.medium import sample_segment
 from renderer.media.nee import nee_vertex_on
 from renderer.media.spectral import channel_probabilities
+from renderer.media.stack_phase import sample_phase
+from renderer.media.table import P_G
 from renderer.phase.hg import hg_eval
 from renderer.scene import Medium
 
 
 @njit(cache=True)
-def _requests(nb, lt, md, stack, o, d, tmax, beta, light, g, use_eq, seed):
-    """Record request j for ray (o[j], d[j], tmax[j]) with path key j, as shade_media does."""
+def _requests(nb, lt, md, stack, o, d, tmax, beta, light, g, use_eq, roulette, seed):
+    """Record request j for ray (o[j], d[j], tmax[j]) with path key j, dimension 0, as
+    shade_media does."""
     for j in range(o.shape[0]):
-        key = path_key(seed, j, 0)
-        oo = (o[j, 0], o[j, 1], o[j, 2])
-        dd = (d[j, 0], d[j, 1], d[j, 2])
         bb = (beta[j, 0], beta[j, 1], beta[j, 2])
-        lp = light_point(lt, light[j], uniform(key, 100), uniform(key, 101))
-        u = (uniform(key, 0), uniform(key, 1), uniform(key, 2), uniform(key, 3), uniform(key, 4))
-        NB.record(nb, j, j, lt, light[j], oo, dd, tmax[j], lp, bb, segment(md, stack, tmax[j]),
-                  channel_probabilities(bb, False), u, g, use_eq[j], 5)
+        NB.record(nb, j, j, path_key(seed, j, 0), 0, lt, light[j], (o[j, 0], o[j, 1], o[j, 2]),
+                  (d[j, 0], d[j, 1], d[j, 2]), tmax[j], bb, segment(md, stack, tmax[j]),
+                  channel_probabilities(bb, False), g, use_eq[j], roulette[j])
 
 
 @njit(cache=True)
-def _scalar(nb, lt, md, stack, o, d, tmax, beta, light, g, use_eq, seed, mis, out):
+def _scalar(lt, md, stack, o, d, tmax, beta, light, g, use_eq, seed, mis, out):
     """The scalar path's vertex, connection and contribution (kernels._medium_nee)."""
-    q = nb[0]
-    C = NB.CHUNK
     for j in range(o.shape[0]):
         key = path_key(seed, j, 0)
         oo = (o[j, 0], o[j, 1], o[j, 2])
         dd = (d[j, 0], d[j, 1], d[j, 2])
         bb = (beta[j, 0], beta[j, 1], beta[j, 2])
-        lp = (q[NB.Q_LP * C + j], q[(NB.Q_LP + 1) * C + j], q[(NB.Q_LP + 2) * C + j])
-        t, wn, dim = nee_vertex_on(segment(md, stack, tmax[j]), oo, dd, tmax[j], lp, bb, key, 0, use_eq[j],
-                                   False)
+        lp = light_point(lt, light[j], uniform(key, SEG_LIGHT + 1), uniform(key, SEG_LIGHT + 2))
+        t, wn, dim = nee_vertex_on(segment(md, stack, tmax[j]), oo, dd, tmax[j], lp, bb, key, SEG_VERTEX,
+                                   use_eq[j], False)
         x = (oo[0] + t * dd[0], oo[1] + t * dd[1], oo[2] + t * dd[2])
         wi, dist, le, pdf, _ = connect_light(lt, light[j], lp, x, uniform(key, dim), uniform(key, dim + 1))
         p_light = pdf * lt[7][light[j]]
@@ -67,6 +66,45 @@ def _scalar(nb, lt, md, stack, o, d, tmax, beta, light, g, use_eq, seed, mis, ou
             out[3 + k, j] = wi[k]
             out[7 + k, j] = bb[k] * wn[k] * le[k] * ph * w / p_light if live else 0.0
         out[6, j] = dist * 0.9999
+
+
+@njit(cache=True)
+def _scalar_path(md, stack, o, d, tmax, beta, roulette, seed, out):
+    """The scalar path's own free flight, phase sample and Russian roulette (shade_media):
+    state, dim, beta, y, direction, pdf in nee_batch.path_update's order."""
+    for j in range(o.shape[0]):
+        key = path_key(seed, j, 0)
+        oo = (o[j, 0], o[j, 1], o[j, 2])
+        dd = (d[j, 0], d[j, 1], d[j, 2])
+        bb = (beta[j, 0], beta[j, 1], beta[j, 2])
+        t, scattered, w, _, dim = sample_segment(md, stack, segment(md, stack, tmax[j]), tmax[j],
+                                                 channel_probabilities(bb, False), key, SEG_FREE_FLIGHT)
+        bb = mul(bb, w)
+        state = NB.PASSED
+        y = madd(oo, dd, t)
+        wi, pdf = (0.0, 0.0, 0.0), 0.0
+        if max3(bb) <= 0.0:
+            state = NB.DEAD
+        elif scattered:
+            wi, pw, pdf = sample_phase(md, stack, y, dd, uniform(key, dim), uniform(key, dim + 1),
+                                       uniform(key, dim + 2))
+            bb = mul(bb, pw)
+            dim += 3
+            state = NB.SCATTERED
+            if roulette[j]:
+                keep = min(1.0, max3(bb))
+                if keep <= 0.0 or uniform(key, dim) >= keep:
+                    state = NB.DEAD
+                else:
+                    bb = scale(bb, 1.0 / keep)
+                dim += 1
+        out[0, j] = state
+        out[1, j] = dim
+        for k in range(3):
+            out[2 + k, j] = bb[k]
+            out[5 + k, j] = y[k]
+            out[8 + k, j] = wi[k]
+        out[11, j] = pdf
 
 
 def _rays(cs, n, rng):
@@ -96,20 +134,23 @@ def test_batch_matches_the_scalar_connection(medium_kw, g, mis, with_transmittan
     lt = cs.lights
     lt = (lt.kind, lt.pos, lt.vec_a, lt.vec_b, lt.color, lt.color_b, lt.param, lt.pmf, lt.cdf)
     stack = np.array([0, -1, -1, -1], np.int32)
+    g = float(cs.media.params[0, P_G])  # as stored (float32), which the scalar phase sampling reads
     n = 4000
     rng = np.random.default_rng(11)
     o, d, tmax, beta = _rays(cs, n, rng)
     light = rng.integers(0, len(lt[7]), n).astype(np.int32)
     use_eq = rng.random(n) < 0.8
     nb = NB.NeeBatch().arrays()
-    _requests(nb, lt, cs.media, stack, o, d, tmax, beta, light, g, use_eq, 3)
-    NB.connect_all(n, nb, mis, with_transmittance)
+    roulette = rng.random(n) < 0.5
+    _requests(nb, lt, cs.media, stack, o, d, tmax, beta, light, g, use_eq, roulette, 3)
+    NB.run(n, nb, mis, with_transmittance)
     ref = np.zeros((10, n))
-    _scalar(nb, lt, cs.media, stack, o, d, tmax, beta, light, g, use_eq, 3, mis, ref)
+    _scalar(lt, cs.media, stack, o, d, tmax, beta, light, g, use_eq, 3, mis, ref)
     if with_transmittance:  # what shadow_media would multiply in
         sigma_t = nb[0].reshape(NB.Q_ROWS, NB.CHUNK)[NB.Q_ST:NB.Q_ST + 3, :n]
         ref[7:] *= np.exp(-sigma_t * ref[6])
-    got = nb[3].reshape(NB.R_ROWS, NB.CHUNK)[:, :n]
+    r = nb[4].reshape(NB.R_ROWS, NB.CHUNK)
+    got = r[:10, :n]
     live = ref[7:].max(axis=0) > 0.0
     assert 0.5 * n < live.sum() < n  # both kinds of request occur
     assert np.array_equal(got[7:].max(axis=0) > 0.0, live)
@@ -117,6 +158,22 @@ def test_batch_matches_the_scalar_connection(medium_kw, g, mis, with_transmittan
     # Relative to each quantity's scale: wi components near 0 carry the direction's rounding.
     assert np.max(np.abs(got[:, live] - ref[:, live]) / scale) < 1e-11
     assert np.max(np.abs(got[7:, live] - ref[7:, live]) / ref[7:, live].clip(1e-300)) < 1e-10
+
+    # The path's own segment: same fate, dimension, throughput, point, direction and pdf.
+    ref = np.zeros((12, n))
+    _scalar_path(cs.media, stack, o, d, tmax, beta, roulette, 3, ref)
+    got = r[[NB.R_STATE, NB.R_DIM, *range(NB.R_BETA, NB.R_BETA + 3), *range(NB.R_Y, NB.R_Y + 3),
+             *range(NB.R_DIR, NB.R_DIR + 3), NB.R_PDF], :n]
+    np.testing.assert_array_equal(got[0], ref[0])
+    for state in (NB.DEAD, NB.PASSED, NB.SCATTERED):
+        assert (ref[0] == state).sum() > n // 50, state  # every fate occurs
+    alive = ref[0] != NB.DEAD
+    np.testing.assert_array_equal(got[1, alive], ref[1, alive])
+    scattered = ref[0] == NB.SCATTERED
+    for rows, which in (((2, 3, 4), alive), ((5, 6, 7, 8, 9, 10, 11), scattered)):
+        rows = list(rows)
+        scale = np.abs(ref[rows][:, which]).max(axis=1, keepdims=True).clip(1e-300)
+        assert np.max(np.abs(got[rows][:, which] - ref[rows][:, which]) / scale) < 1e-11
 
 
 def test_render_is_the_same_with_and_without_batching():
@@ -148,7 +205,8 @@ def test_the_batch_loops_compile_to_simd():
     keep the images right and lose the speed silently, so check the vector types in the IR."""
     options = {**JIT_OPTIONS, "cache": False}
     nb = NB.NeeBatch().arrays()
-    for stage, args in ((NB.vertices, (16, nb)), (NB.connections, (16, nb, True, True))):
+    stages = ((NB.vertices, (16, nb)), (NB.connections, (16, nb, True, True)), (NB.advance, (16, nb)))
+    for stage, args in stages:
         fresh = njit(**options)(stage.py_func)
         fresh(*args)
         ir = "".join(fresh.inspect_llvm().values())

@@ -44,6 +44,7 @@ from ..lights.sample import (
     triangle_light_pdf,
 )
 from . import nee_batch
+from .dims import MEDIUM_NEE_DIMS, SEG_SHADOW, SHADOW_DIMS
 from .media_api import (
     EMPTY,
     channel_probabilities,
@@ -54,6 +55,7 @@ from .media_api import (
     sample_phase,
     sample_segment,
     segment,
+    segment_emission,
     stack_has_grid,
     stack_is_empty,
     stack_push,
@@ -75,8 +77,6 @@ CFG_SIZE = 9
 SAMPLING_MIS, SAMPLING_NEE, SAMPLING_BSDF = 0, 1, 2
 MAX_CROSSINGS = 256  # interfaces a path may pass before it is ended (guards open meshes)
 RAY_FAR = 1e30
-SHADOW_DIMS = 64  # random dimensions reserved for a shadow ray's own tracking through media
-MEDIUM_NEE_DIMS = 2 + SHADOW_DIMS  # a medium vertex's light connection and its shadow ray
 
 
 @inline_kernel
@@ -197,22 +197,39 @@ def _medium_nee(ps, i, md, lt, cfg, x, d, beta, key, dim, sh, s, light, lp, weig
 
 @kernel
 def _flush_nee_batch(count, nb, ps, cfg, sh, s):
-    """Connect the batched next-event vertices 0..count-1 (nee_batch, SIMD across paths) and
-    write the shadow rays of those that carry light from index s; returns the new s."""
+    """Run the batched homogeneous segments 0..count-1 (nee_batch, SIMD across paths): write
+    the shadow rays of next-event connections that carry light from index s, and each
+    path's new state. Returns the new s."""
     # Without interfaces a shadow ray stays in its medium, so the batch applies the
     # transmittance too (SIMD) and the ray leaves with an empty stack: shadow_media skips it.
     in_batch = cfg[CFG_WALK_SHADOWS] == 0
-    nee_batch.connect_all(count, nb, cfg[CFG_SAMPLING] != SAMPLING_NEE, in_batch)
-    _, q_path, q_dim, r = nb
+    nee_batch.run(count, nb, cfg[CFG_SAMPLING] != SAMPLING_NEE, in_batch)
+    _, q_key, q_dim, q_path, r = nb
     for j in range(count):
-        x, wi, length, c = nee_batch.result(r, j)
-        if not max3(c) > 0.0:
-            continue
         i = q_path[j]
-        _emit_shadow(sh, s, x, wi, length, c, ps.pid[i], ps.key[i], q_dim[j], ps.stack[i], 0.0)
-        if in_batch:
-            sh.stack[s, 0] = EMPTY
-        s += 1
+        x, wi, length, c = nee_batch.shadow_ray(r, j)
+        if max3(c) > 0.0:
+            _emit_shadow(sh, s, x, wi, length, c, ps.pid[i], q_key[j], q_dim[j] + SEG_SHADOW, ps.stack[i],
+                         0.0)
+            if in_batch:
+                sh.stack[s, 0] = EMPTY
+            s += 1
+        state, dim, beta, y, wo, pdf = nee_batch.path_update(r, j)
+        ps.dim[i] = dim
+        if state == nee_batch.DEAD:
+            ps.alive[i] = 0
+            continue
+        _put(ps.beta, i, beta)
+        if state == nee_batch.PASSED:
+            continue
+        ps.depth[i] += 1
+        ps.mis_pdf[i] = pdf
+        _put(ps.mis_o, i, y)
+        _put(ps.o, i, y)
+        _put(ps.d, i, wo)
+        ps.tmax[i] = RAY_FAR
+        ps.gap[i] = 0.0
+        ps.alive[i] = 2
     return s
 
 
@@ -268,25 +285,28 @@ def shade_media(n, ps, prim, lt, md, cfg, L, sh, nb):
             # equiangular/free-flight MIS toward a light point, independent of where the
             # path itself goes on.
             light = pick_light(cdf, uniform(key, dim))
-            lp = light_point(lt, light, uniform(key, dim + 1), uniform(key, dim + 2))
-            dim += 3
             use_eq = cfg[CFG_EQUIANGULAR] != 0 and light_has_point(lt, light)
             if batched and nee_batch.qualifies(lt, light, stack):
-                u = (uniform(key, dim), uniform(key, dim + 1), uniform(key, dim + 2), uniform(key, dim + 3),
-                     uniform(key, dim + 4))
-                nee_batch.record(nb, queued, i, lt, light, o, d, t_hit, lp, beta, seg,
-                                 channel_probabilities(beta, uniform_channel), u, phase_g(md, stack[0]),
-                                 use_eq, dim + 5)
+                # The whole segment (this vertex, the free flight, the phase sample and
+                # Russian roulette) runs in the SIMD batch; only its emission is added here.
+                le = segment_emission(md, stack, seg[2], t_hit)
+                if max3(le) > 0.0:
+                    L[pid, 0] += beta[0] * le[0]
+                    L[pid, 1] += beta[1] * le[1]
+                    L[pid, 2] += beta[2] * le[2]
+                nee_batch.record(nb, queued, i, key, dim, lt, light, o, d, t_hit, beta, seg,
+                                 channel_probabilities(beta, uniform_channel), phase_g(md, stack[0]), use_eq,
+                                 depth + 1 >= cfg[CFG_RR_DEPTH])
                 queued += 1
                 if queued == nee_batch.CHUNK:
                     s = _flush_nee_batch(queued, nb, ps, cfg, sh, s)
                     queued = 0
-                dim += 3
-            else:
-                tn, wn, dim = nee_vertex_on(seg, o, d, t_hit, lp, beta, key, dim, use_eq, uniform_channel)
-                if max3(wn) > 0.0:
-                    xn = madd(o, d, tn)
-                    s = _medium_nee(ps, i, md, lt, cfg, xn, d, beta, key, dim, sh, s, light, lp, wn)
+                continue
+            lp = light_point(lt, light, uniform(key, dim + 1), uniform(key, dim + 2))
+            dim += 3
+            tn, wn, dim = nee_vertex_on(seg, o, d, t_hit, lp, beta, key, dim, use_eq, uniform_channel)
+            if max3(wn) > 0.0:
+                s = _medium_nee(ps, i, md, lt, cfg, madd(o, d, tn), d, beta, key, dim, sh, s, light, lp, wn)
             dim += MEDIUM_NEE_DIMS
             did_nee = True
         if homogeneous:

@@ -1,27 +1,34 @@
-"""The decoupled next-event vertex of homogeneous segments, as one SIMD loop across paths.
+"""Homogeneous medium segments as SIMD loops across paths.
 
-shade_media's next-event vertex (a point on the segment by equiangular/free-flight MIS, a
-point on a triangle light by solid angle, the phase function and the MIS weight toward it)
-is a chain of about 12 square roots, 15 divisions, 3 exp, 2 atan2 and 2 sincos per path.
-Inside the per-path loop it runs at the latency of that chain (108 ns per path, half of the
-medium kernel's time in the fog Cornell box). So shade_media only records each request here
-(`record`); `connect_all` then runs the same maths for the whole batch as one loop without
-branches, which LLVM vectorises (8 paths per AVX-512 instruction), and `emit_all` writes the
-shadow rays of the connections that carry light.
+A path segment in a homogeneous medium does the same work in every path: the decoupled
+next-event vertex (a point on the segment by equiangular/free-flight MIS, a point on a
+triangle light by solid angle, the phase function and the MIS weight toward it: a chain of
+about 12 square roots, 15 divisions, 3 exp, 2 atan2 and 2 sincos), then the path's own free
+flight, Henyey-Greenstein direction and Russian roulette. Inside the per-path loop that
+runs at the latency of the chain, with a mispredicted branch wherever a random number
+decides (scatter or pass, which channel, which technique). So shade_media only records each
+segment here (`record`: the ray, the medium's constants, the light's data, the random key
+and the path's dimension counter), and `run` computes the batch in three loops without
+branches, which LLVM vectorises (8 paths per AVX-512 instruction): `vertices`,
+`connections` and `advance`. The random numbers are computed inside the loops from the key
+and the dimension layout in dims.py, so the scalar path in kernels.py, which does the same
+maths, draws the same ones; tests/test_nee_batch.py holds the two to 1e-11. kernels.
+_flush_nee_batch then writes the shadow rays and the paths' new states.
 
-Which requests qualify (`qualifies`): a homogeneous stack with one entry (so the phase
-function is one Henyey-Greenstein lobe) and a triangle light. Everything else (grids,
-overlapping media, point, spot and distant lights) keeps the scalar path in kernels.py,
-which computes the same thing; tests/test_nee_batch.py holds the two to 1e-12.
+Which segments qualify (`qualifies`; shade_media checks the rest): a homogeneous stack with
+one entry (so the phase function is one Henyey-Greenstein lobe), a path that still takes a
+next-event vertex (depth <= max_bounces, light sampling on) and a triangle light picked for
+it. Everything else (grids, overlapping media, point, spot and distant lights, the last
+segment of a path) keeps the scalar path.
 
 Storage (NeeBatch), for CHUNK requests: q, Q_ROWS rows of CHUNK float64 in one flat array,
 row k of request j at q[k * CHUNK + j], so that each quantity is contiguous (what SIMD loads
 want) and every pair of rows lies a compile-time constant apart: LLVM then proves that the
 loops' loads and stores never overlap without run-time checks (with one 2-D array per
 quantity set it needed hundreds of them and gave up). r: R_ROWS rows the same way, the
-results: the vertex x, the direction wi to the light, the shadow ray's length and its
-contribution (0 when none). q_path (CHUNK,) int32: the path row; q_dim (CHUNK,) int32: the
-first random dimension of the shadow ray.
+results (see shadow_ray and path_update). q_key (CHUNK,) uint64 and q_dim (CHUNK,) int64:
+the path's random key and its dimension counter at the segment's start; q_path (CHUNK,)
+int32: the path row.
 """
 
 import math
@@ -30,6 +37,7 @@ import numpy as np
 
 from renderer.kernels import inline_kernel, kernel
 from renderer.kernels import simdmath as sm
+from renderer.kernels.rng import uniform
 from renderer.kernels.vecmath import cross, dot, sub
 from renderer.lights.sample import looks_near
 from renderer.lights.spherical_triangle import MIN_SOLID_ANGLE, sample_spherical_triangle, unit_or_zero
@@ -38,48 +46,43 @@ from renderer.media.equiangular import D_FLOOR, D_MIN, MIN_THETA
 from renderer.media.homogeneous import optical_depth, truncated_pdf
 from renderer.media.spectral import pick_channel
 from renderer.media.stack import EMPTY
-from renderer.phase.hg import hg_eval
+from renderer.phase.hg import hg_direction, hg_eval
 
-Q_O, Q_D, Q_TMAX, Q_LP, Q_BETA = 0, 3, 6, 7, 10
-Q_ST, Q_SS, Q_MISS, Q_P = 13, 16, 19, 22
-Q_U_TECHNIQUE, Q_U_CHANNEL, Q_U_T, Q_U1, Q_U2 = 25, 26, 27, 28, 29
-Q_G, Q_EQUIANGULAR = 30, 31
-Q_P0, Q_P1, Q_P2, Q_AREA, Q_LE_FRONT, Q_LE_BACK, Q_PMF = 32, 35, 38, 41, 42, 45, 48
-Q_ROWS = 49
-R_X, R_WI, R_LENGTH, R_C = 0, 3, 6, 7
-R_ROWS = 10
-# Requests per SIMD pass: 1.6 MB of request rows, which stay in cache. Not a power of two: with
-# rows exactly 32 KiB apart, the 49 stores of one request all fell into one cache set and
+from .dims import SEG_CONNECT, SEG_FREE_FLIGHT, SEG_LIGHT, SEG_PHASE, SEG_RR, SEG_VERTEX
+
+Q_O, Q_D, Q_TMAX, Q_BETA, Q_ST, Q_SS, Q_TR, Q_MISS, Q_P = 0, 3, 6, 7, 10, 13, 16, 19, 22
+Q_G, Q_EQUIANGULAR, Q_RR = 25, 26, 27
+Q_P0, Q_EA, Q_EB, Q_AREA, Q_LE_FRONT, Q_LE_BACK, Q_PMF = 28, 31, 34, 37, 38, 41, 44
+Q_ROWS = 45
+R_X, R_WI, R_LENGTH, R_C, R_LP = 0, 3, 6, 7, 10
+R_Y, R_DIR, R_BETA, R_PDF, R_STATE, R_DIM = 13, 16, 19, 22, 23, 24
+R_ROWS = 25
+# R_STATE: what became of the path on its segment.
+DEAD, PASSED, SCATTERED = 0.0, 1.0, 2.0
+# Requests per SIMD pass: 1.5 MB of request rows, which stay in cache. Not a power of two: with
+# rows exactly 32 KiB apart, the stores of one request all fell into one cache set and
 # recording took 200 ns a request instead of a few (measured); one extra cache line per row
-# spreads them over 49 sets.
+# spreads them over as many sets as there are rows.
 CHUNK = 4096 + 8
 
 
 class NeeBatch:
-    """Request and result storage for CHUNK next-event vertices (see the module)."""
+    """Request and result storage for CHUNK homogeneous segments (see the module)."""
 
     def __init__(self):
         self.q = np.zeros(Q_ROWS * CHUNK, np.float64)
+        self.q_key = np.zeros(CHUNK, np.uint64)
+        self.q_dim = np.zeros(CHUNK, np.int64)
         self.q_path = np.zeros(CHUNK, np.int32)
-        self.q_dim = np.zeros(CHUNK, np.int32)
         self.r = np.zeros(R_ROWS * CHUNK, np.float64)
 
     def arrays(self):
-        return self.q, self.q_path, self.q_dim, self.r
+        return self.q, self.q_key, self.q_dim, self.q_path, self.r
 
 
 @inline_kernel
-def result(r, j):
-    """(x, wi, length, contribution) of request j after connect_all."""
-    x = (r[R_X * CHUNK + j], r[(R_X + 1) * CHUNK + j], r[(R_X + 2) * CHUNK + j])
-    wi = (r[R_WI * CHUNK + j], r[(R_WI + 1) * CHUNK + j], r[(R_WI + 2) * CHUNK + j])
-    c = (r[R_C * CHUNK + j], r[(R_C + 1) * CHUNK + j], r[(R_C + 2) * CHUNK + j])
-    return x, wi, r[R_LENGTH * CHUNK + j], c
-
-
-@inline_kernel
-def qualifies(lt, light, stack):
-    return lt[0][light] == TRIANGLE and stack[1] == EMPTY
+def _row3(a, row, j):
+    return (a[row * CHUNK + j], a[(row + 1) * CHUNK + j], a[(row + 2) * CHUNK + j])
 
 
 @inline_kernel
@@ -90,40 +93,65 @@ def _put3(a, row, j, v):
 
 
 @inline_kernel
-def record(nb, j, path, lt, light, o, d, tmax, lp, beta, seg, p, u, g, use_equiangular, dim):
-    """Store request j. seg = homogeneous.segment's (sigma_a, sigma_s, sigma_t, T, 1 - T);
-    u = (u_technique, u_channel, u_t, u1, u2); dim: the shadow ray's first dimension."""
-    q, q_path, q_dim, _ = nb
+def shadow_ray(r, j):
+    """(x, wi, length, contribution) of request j's next-event shadow ray (contribution 0:
+    none)."""
+    return _row3(r, R_X, j), _row3(r, R_WI, j), r[R_LENGTH * CHUNK + j], _row3(r, R_C, j)
+
+
+@inline_kernel
+def path_update(r, j):
+    """(state, dim, beta, y, wi, pdf) of request j's path after its segment: state DEAD,
+    PASSED (reached the segment's end with throughput beta) or SCATTERED (at y, into wi with
+    phase pdf `pdf`, throughput beta); dim: its next random dimension."""
+    return (r[R_STATE * CHUNK + j], int(r[R_DIM * CHUNK + j]), _row3(r, R_BETA, j), _row3(r, R_Y, j),
+            _row3(r, R_DIR, j), r[R_PDF * CHUNK + j])
+
+
+@inline_kernel
+def qualifies(lt, light, stack):
+    return lt[0][light] == TRIANGLE and stack[1] == EMPTY
+
+
+@inline_kernel
+def record(nb, j, path, key, dim, lt, light, o, d, tmax, beta, seg, p, g, use_equiangular, roulette):
+    """Store request j: path row `path` with random key `key` and counter `dim` at the start
+    of its segment (dims.SEG_*), which picked `light`; seg = homogeneous.segment's (sigma_a,
+    sigma_s, sigma_t, T, 1 - T); p: channel probabilities; roulette: whether Russian
+    roulette applies after a scattering event here."""
+    q, q_key, q_dim, q_path, _ = nb
     _put3(q, Q_O, j, o)
     _put3(q, Q_D, j, d)
     q[Q_TMAX * CHUNK + j] = tmax
-    _put3(q, Q_LP, j, lp)
     _put3(q, Q_BETA, j, beta)
-    _put3(q, Q_ST, j, seg[2])
     _put3(q, Q_SS, j, seg[1])
+    _put3(q, Q_ST, j, seg[2])
+    _put3(q, Q_TR, j, seg[3])
     _put3(q, Q_MISS, j, seg[4])
     _put3(q, Q_P, j, p)
-    q[Q_U_TECHNIQUE * CHUNK + j] = u[0]
-    q[Q_U_CHANNEL * CHUNK + j] = u[1]
-    q[Q_U_T * CHUNK + j] = u[2]
-    q[Q_U1 * CHUNK + j] = u[3]
-    q[Q_U2 * CHUNK + j] = u[4]
     q[Q_G * CHUNK + j] = g
     q[Q_EQUIANGULAR * CHUNK + j] = 1.0 if use_equiangular else 0.0
-    q_path[j] = path
+    q[Q_RR * CHUNK + j] = 1.0 if roulette else 0.0
+    q_key[j] = key
     q_dim[j] = dim
+    q_path[j] = path
     # The light's data too: the SIMD loop then reads only rows at j (a gather by light index
     # would keep LLVM from bounding the loop's memory accesses, and so from vectorising it).
     pos, vec_a, vec_b, color, color_b, param, pmf = lt[1], lt[2], lt[3], lt[4], lt[5], lt[6], lt[7]
     for k in range(3):
-        p0 = np.float64(pos[light, k])
-        q[(Q_P0 + k) * CHUNK + j] = p0
-        q[(Q_P1 + k) * CHUNK + j] = p0 + np.float64(vec_a[light, k])
-        q[(Q_P2 + k) * CHUNK + j] = p0 + np.float64(vec_b[light, k])
+        q[(Q_P0 + k) * CHUNK + j] = pos[light, k]
+        q[(Q_EA + k) * CHUNK + j] = vec_a[light, k]
+        q[(Q_EB + k) * CHUNK + j] = vec_b[light, k]
         q[(Q_LE_FRONT + k) * CHUNK + j] = color[light, k]
         q[(Q_LE_BACK + k) * CHUNK + j] = color_b[light, k]
     q[Q_AREA * CHUNK + j] = param[light, 0]
     q[Q_PMF * CHUNK + j] = pmf[light]
+
+
+@inline_kernel
+def _u(q_key, q_dim, j, offset):
+    """The request's uniform number at dimension (its segment's start + offset)."""
+    return uniform(q_key[j], q_dim[j] + offset)
 
 
 # The maths below is media/nee.py's nee_vertex_on and lights/sample.py's connect_light for a
@@ -147,33 +175,42 @@ def _truncated_sample(sigma, tmax, miss, u):
 
 
 @inline_kernel
-def _vertex(q, j):
+def _light_point(q, j, u1, u2):
+    """lights.sample.light_point of request j's triangle."""
+    su = math.sqrt(u1)
+    b1 = 1.0 - su
+    b2 = u2 * su
+    p0, ea, eb = _row3(q, Q_P0, j), _row3(q, Q_EA, j), _row3(q, Q_EB, j)
+    return (p0[0] + b1 * ea[0] + b2 * eb[0], p0[1] + b1 * ea[1] + b2 * eb[1], p0[2] + b1 * ea[2] + b2 * eb[2])
+
+
+@inline_kernel
+def _vertex(q, j, lp, u_technique, u_channel, u_t):
     """(t, weight3, valid) of the next-event vertex on [0, tmax) (media.nee.nee_vertex_on)."""
-    ox, oy, oz = q[Q_O * CHUNK + j], q[(Q_O + 1) * CHUNK + j], q[(Q_O + 2) * CHUNK + j]
-    dx, dy, dz = q[Q_D * CHUNK + j], q[(Q_D + 1) * CHUNK + j], q[(Q_D + 2) * CHUNK + j]
+    ox, oy, oz = _row3(q, Q_O, j)
+    dx, dy, dz = _row3(q, Q_D, j)
     tmax = q[Q_TMAX * CHUNK + j]
-    st0, st1, st2 = q[Q_ST * CHUNK + j], q[(Q_ST + 1) * CHUNK + j], q[(Q_ST + 2) * CHUNK + j]
-    ss0, ss1, ss2 = q[Q_SS * CHUNK + j], q[(Q_SS + 1) * CHUNK + j], q[(Q_SS + 2) * CHUNK + j]
-    m0, m1, m2 = q[Q_MISS * CHUNK + j], q[(Q_MISS + 1) * CHUNK + j], q[(Q_MISS + 2) * CHUNK + j]
-    p0, p1, p2 = q[Q_P * CHUNK + j], q[(Q_P + 1) * CHUNK + j], q[(Q_P + 2) * CHUNK + j]
+    st0, st1, st2 = _row3(q, Q_ST, j)
+    ss0, ss1, ss2 = _row3(q, Q_SS, j)
+    m0, m1, m2 = _row3(q, Q_MISS, j)
+    p0, p1, p2 = _row3(q, Q_P, j)
     use_eq = q[Q_EQUIANGULAR * CHUNK + j] != 0.0
     # Equiangular frame toward the light point.
-    lx, ly, lz = q[Q_LP * CHUNK + j] - ox, q[(Q_LP + 1) * CHUNK + j] - oy, q[(Q_LP + 2) * CHUNK + j] - oz
+    lx, ly, lz = lp[0] - ox, lp[1] - oy, lp[2] - oz
     delta = lx * dx + ly * dy + lz * dz
     px, py, pz = lx - delta * dx, ly - delta * dy, lz - delta * dz
     big_d = max(math.sqrt(px * px + py * py + pz * pz), D_FLOOR * abs(delta), D_MIN)
     theta_d = sm.atan2(big_d * tmax, big_d * big_d - delta * (tmax - delta))
     degenerate = not theta_d >= MIN_THETA
-    u_t = q[Q_U_T * CHUNK + j]
     sin_phi, cos_phi = sm.sincos(u_t * theta_d)
     denom = big_d * cos_phi + delta * sin_phi
     t_eq = min(max((delta * delta + big_d * big_d) * sin_phi / denom, 0.0), tmax)
     t_eq = tmax if denom <= 0.0 else t_eq
     t_eq = u_t * tmax if degenerate else t_eq
     # Truncated free flight in the channel chosen by p.
-    c = pick_channel((p0, p1, p2), q[Q_U_CHANNEL * CHUNK + j])
+    c = pick_channel((p0, p1, p2), u_channel)
     t_ff = _truncated_sample(_pick(c, st0, st1, st2), tmax, _pick(c, m0, m1, m2), u_t)
-    t = t_eq if (use_eq and q[Q_U_TECHNIQUE * CHUNK + j] < 0.5) else t_ff
+    t = t_eq if (use_eq and u_technique < 0.5) else t_ff
     tr0 = sm.exp_neg(optical_depth(st0, t))
     tr1 = sm.exp_neg(optical_depth(st1, t))
     tr2 = sm.exp_neg(optical_depth(st2, t))
@@ -185,16 +222,6 @@ def _vertex(q, j):
     valid = (ss0 > 0.0 or ss1 > 0.0 or ss2 > 0.0) and tmax > 0.0
     inv = 1.0 / pdf
     return t, (tr0 * ss0 * inv, tr1 * ss1 * inv, tr2 * ss2 * inv), valid
-
-
-@inline_kernel
-def _connect_triangle(q, j, x, u1, u2):
-    """connect_triangle for request j's light."""
-    p0 = (q[Q_P0 * CHUNK + j], q[(Q_P0 + 1) * CHUNK + j], q[(Q_P0 + 2) * CHUNK + j])
-    p1 = (q[Q_P1 * CHUNK + j], q[(Q_P1 + 1) * CHUNK + j], q[(Q_P1 + 2) * CHUNK + j])
-    p2 = (q[Q_P2 * CHUNK + j], q[(Q_P2 + 1) * CHUNK + j], q[(Q_P2 + 2) * CHUNK + j])
-    lp = (q[Q_LP * CHUNK + j], q[(Q_LP + 1) * CHUNK + j], q[(Q_LP + 2) * CHUNK + j])
-    return connect_triangle(p0, p1, p2, lp, q[Q_AREA * CHUNK + j], x, u1, u2)
 
 
 @inline_kernel
@@ -232,10 +259,14 @@ def connect_triangle(p0, p1, p2, lp, area, x, u1, u2):
 
 @kernel
 def vertices(n, nb):
-    """Stage 1: the next-event vertex x of requests 0..n-1 and its weight (0 when none)."""
-    q, _, _, r = nb
+    """Stage 1: the light point and the next-event vertex x of requests 0..n-1, and the
+    vertex's weight (0 when none)."""
+    q, q_key, q_dim, _, r = nb
     for j in range(n):
-        t, wn, valid = _vertex(q, j)
+        lp = _light_point(q, j, _u(q_key, q_dim, j, SEG_LIGHT + 1), _u(q_key, q_dim, j, SEG_LIGHT + 2))
+        t, wn, valid = _vertex(q, j, lp, _u(q_key, q_dim, j, SEG_VERTEX), _u(q_key, q_dim, j, SEG_VERTEX + 1),
+                               _u(q_key, q_dim, j, SEG_VERTEX + 2))
+        _put3(r, R_LP, j, lp)
         r[R_X * CHUNK + j] = q[Q_O * CHUNK + j] + t * q[Q_D * CHUNK + j]
         r[(R_X + 1) * CHUNK + j] = q[(Q_O + 1) * CHUNK + j] + t * q[(Q_D + 1) * CHUNK + j]
         r[(R_X + 2) * CHUNK + j] = q[(Q_O + 2) * CHUNK + j] + t * q[(Q_D + 2) * CHUNK + j]
@@ -251,11 +282,17 @@ def connections(n, nb, mis, with_transmittance):
     shadow ray's transmittance exp(-sigma_t length) (valid when no interface can lie on a
     shadow ray, so its medium is the request's all along; the integrator then leaves the
     ray out of shadow_media)."""
-    q, _, _, r = nb
+    q, q_key, q_dim, _, r = nb
     for j in range(n):
-        d = (q[Q_D * CHUNK + j], q[(Q_D + 1) * CHUNK + j], q[(Q_D + 2) * CHUNK + j])
-        x = (r[R_X * CHUNK + j], r[(R_X + 1) * CHUNK + j], r[(R_X + 2) * CHUNK + j])
-        wi, dist, back, pdf = _connect_triangle(q, j, x, q[Q_U1 * CHUNK + j], q[Q_U2 * CHUNK + j])
+        d = _row3(q, Q_D, j)
+        x = _row3(r, R_X, j)
+        p0 = _row3(q, Q_P0, j)
+        ea, eb = _row3(q, Q_EA, j), _row3(q, Q_EB, j)
+        p1 = (p0[0] + ea[0], p0[1] + ea[1], p0[2] + ea[2])
+        p2 = (p0[0] + eb[0], p0[1] + eb[1], p0[2] + eb[2])
+        wi, dist, back, pdf = connect_triangle(p0, p1, p2, _row3(r, R_LP, j), q[Q_AREA * CHUNK + j], x,
+                                               _u(q_key, q_dim, j, SEG_CONNECT),
+                                               _u(q_key, q_dim, j, SEG_CONNECT + 1))
         # A blend with weights 0 and 1 (exact), not `back ? row_b : row_f`: LLVM turns a
         # select of two loads into a load from a selected address, which it cannot vectorise.
         f = 1.0 if back else 0.0
@@ -268,9 +305,7 @@ def connections(n, nb, mis, with_transmittance):
         b2 = ph * ph
         w = (a2 / (a2 + b2) if a2 + b2 > 0.0 else 0.0) if mis else 1.0
         k = w / p_light * ph if p_light > 0.0 else 0.0
-        r[R_WI * CHUNK + j] = wi[0]
-        r[(R_WI + 1) * CHUNK + j] = wi[1]
-        r[(R_WI + 2) * CHUNK + j] = wi[2]
+        _put3(r, R_WI, j, wi)
         length = dist * 0.9999
         r[R_LENGTH * CHUNK + j] = length
         tr0 = sm.exp_neg(optical_depth(q[Q_ST * CHUNK + j], length)) if with_transmittance else 1.0
@@ -281,7 +316,69 @@ def connections(n, nb, mis, with_transmittance):
         r[(R_C + 2) * CHUNK + j] = q[(Q_BETA + 2) * CHUNK + j] * r[(R_C + 2) * CHUNK + j] * le2 * k * tr2
 
 
+@inline_kernel
+def _free_flight(q, j, u_channel, u_distance):
+    """(t, scattered, weight3) of homogeneous.free_flight_segment (medium.sample_segment:
+    weight T(tmax) with no sample when nothing scatters)."""
+    tmax = q[Q_TMAX * CHUNK + j]
+    st0, st1, st2 = _row3(q, Q_ST, j)
+    ss0, ss1, ss2 = _row3(q, Q_SS, j)
+    te0, te1, te2 = _row3(q, Q_TR, j)
+    p0, p1, p2 = _row3(q, Q_P, j)
+    scatters = ss0 > 0.0 or ss1 > 0.0 or ss2 > 0.0
+    sigma = _pick(pick_channel((p0, p1, p2), u_channel), st0, st1, st2)
+    t = -sm.log1p(-u_distance) / (sigma if sigma > 0.0 else 1.0)
+    hit = scatters and sigma > 0.0 and t < tmax
+    t = t if hit else tmax
+    ts = t if hit else 0.0  # keeps exp finite-argument on the branch not taken
+    tr0 = sm.exp_neg(optical_depth(st0, ts))
+    tr1 = sm.exp_neg(optical_depth(st1, ts))
+    tr2 = sm.exp_neg(optical_depth(st2, ts))
+    pdf = p0 * st0 * tr0 + p1 * st1 * tr1 + p2 * st2 * tr2
+    prob = p0 * te0 + p1 * te1 + p2 * te2
+    inv = 1.0 / (pdf if hit else (prob if scatters else 1.0))
+    w0 = (tr0 * ss0 if hit else te0) * inv
+    w1 = (tr1 * ss1 if hit else te1) * inv
+    w2 = (tr2 * ss2 if hit else te2) * inv
+    return t, hit, (w0, w1, w2)
+
+
 @kernel
-def connect_all(n, nb, mis, with_transmittance):
+def advance(n, nb):
+    """Stage 3: the path's own free flight on its segment, and where it scatters the
+    Henyey-Greenstein direction and Russian roulette (kernels.shade_media's scalar path)."""
+    q, q_key, q_dim, _, r = nb
+    for j in range(n):
+        t, hit, w = _free_flight(q, j, _u(q_key, q_dim, j, SEG_FREE_FLIGHT),
+                                 _u(q_key, q_dim, j, SEG_FREE_FLIGHT + 1))
+        b0, b1, b2 = _row3(q, Q_BETA, j)
+        b0, b1, b2 = b0 * w[0], b1 * w[1], b2 * w[2]
+        alive = max(b0, max(b1, b2)) > 0.0
+        d = _row3(q, Q_D, j)
+        g = q[Q_G * CHUNK + j]
+        sin_phi, cos_phi = sm.sincos(2.0 * math.pi * _u(q_key, q_dim, j, SEG_PHASE + 2))
+        wi, pdf = hg_direction(g, d, _u(q_key, q_dim, j, SEG_PHASE + 1), sin_phi, cos_phi)
+        # Russian roulette on the scattered path (one lobe: the phase weight is 1).
+        roulette = q[Q_RR * CHUNK + j] != 0.0
+        keep = min(1.0, max(b0, max(b1, b2)))
+        survives = not roulette or (keep > 0.0 and _u(q_key, q_dim, j, SEG_RR) < keep)
+        inv_keep = 1.0 / keep if roulette and hit and keep > 0.0 else 1.0
+        state = (SCATTERED if survives else DEAD) if hit else PASSED
+        r[R_STATE * CHUNK + j] = state if alive else DEAD
+        r[R_DIM * CHUNK + j] = q_dim[j] + (SEG_PHASE if not hit else (SEG_RR + 1 if roulette else SEG_RR))
+        r[R_BETA * CHUNK + j] = b0 * inv_keep
+        r[(R_BETA + 1) * CHUNK + j] = b1 * inv_keep
+        r[(R_BETA + 2) * CHUNK + j] = b2 * inv_keep
+        r[R_Y * CHUNK + j] = d[0] * t + q[Q_O * CHUNK + j]
+        r[(R_Y + 1) * CHUNK + j] = d[1] * t + q[(Q_O + 1) * CHUNK + j]
+        r[(R_Y + 2) * CHUNK + j] = d[2] * t + q[(Q_O + 2) * CHUNK + j]
+        _put3(r, R_DIR, j, wi)
+        r[R_PDF * CHUNK + j] = pdf
+
+
+@kernel
+def run(n, nb, mis, with_transmittance):
+    """All three stages for requests 0..n-1."""
     vertices(n, nb)
     connections(n, nb, mis, with_transmittance)
+    advance(n, nb)

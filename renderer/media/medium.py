@@ -57,10 +57,15 @@ def sample_segment(mt, stack, seg, tmax, p, key, dim):
     else:
         t, scattered, weight = free_flight_segment(ss, st, tr_end, tmax, p, uniform(key, dim),
                                                    uniform(key, dim + 1))
-    le = (0.0, 0.0, 0.0)
+    return t, scattered, weight, segment_emission(mt, stack, st, tmax), dim + 2
+
+
+@inline_kernel
+def segment_emission(mt, stack, sigma_t, tmax):
+    """integral_0^tmax T(t) E dt of a HOMOGENEOUS stack (0 when nothing in it emits)."""
     if stack_has_emission(mt, stack):
-        le = emission_integral(stack_constant_emission(mt, stack), st, tmax)
-    return t, scattered, weight, le, dim + 2
+        return emission_integral(stack_constant_emission(mt, stack), sigma_t, tmax)
+    return (0.0, 0.0, 0.0)
 
 
 @inline_kernel

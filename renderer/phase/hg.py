@@ -67,11 +67,17 @@ def hg_sample_cos(g, u):
 @inline_kernel
 def hg_sample(g, d, u1, u2):
     """Sample a scattered direction around the propagation direction d: (wi, pdf)."""
+    sin_phi, cos_phi = fm.sincos(2.0 * math.pi * u2)
+    return hg_direction(g, d, u1, sin_phi, cos_phi)
+
+
+@inline_kernel
+def hg_direction(g, d, u1, sin_phi, cos_phi):
+    """hg_sample given the sine and cosine of the azimuth 2 pi u2 (so that SIMD loops can
+    compute them with simdmath)."""
     c, s = hg_sample_cos_s(g, u1)
     sin_theta = math.sqrt(max(0.0, (1.0 - c) * (1.0 + c)))
-    phi = 2.0 * math.pi * u2
     tx, ty = onb(d)
-    sin_phi, cos_phi = fm.sincos(phi)
     wi = to_world((sin_theta * cos_phi, sin_theta * sin_phi, c), tx, ty, d)
     # s^2 = 1 + g^2 - 2 g cos by construction, so the pdf needs no cancelling difference.
     return wi, INV_4PI * (1.0 - g * g) / (s * s * s)

@@ -1,0 +1,19 @@
+"""How a path spends its random dimensions (uniform(key, dim), renderer.kernels.rng).
+
+A path's dimension counter only grows, and every event takes a fixed block of it whether
+or not it uses all of it, so that the scalar kernels and the SIMD batches (nee_batch), which
+do the same work in a different order, draw the same random numbers.
+"""
+
+SHADOW_DIMS = 64  # a shadow ray's own tracking through media
+MEDIUM_NEE_DIMS = 2 + SHADOW_DIMS  # a medium vertex's light connection and its shadow ray
+
+# A homogeneous medium segment with a next-event vertex, as offsets from the path's counter
+# at the start of the segment (shade_media spends them in this order):
+SEG_LIGHT = 0  # the light pick, then the two of the point on it
+SEG_VERTEX = 3  # the vertex: technique, channel, distance
+SEG_CONNECT = 6  # the light connection's two (the MEDIUM_NEE_DIMS block starts here)
+SEG_SHADOW = SEG_CONNECT + 2  # the shadow ray's
+SEG_FREE_FLIGHT = SEG_CONNECT + MEDIUM_NEE_DIMS  # the path's own channel and distance
+SEG_PHASE = SEG_FREE_FLIGHT + 2  # the lobe pick, then the two of the direction
+SEG_RR = SEG_PHASE + 3  # Russian roulette (when it applies)
