@@ -38,10 +38,10 @@ def _requests(nb, lt, md, stack, o, d, tmax, beta, light, g, use_eq, roulette, s
     """Record request j for ray (o[j], d[j], tmax[j]) with path key j, dimension 0, as
     shade_media does."""
     for j in range(o.shape[0]):
-        bb = (beta[j, 0], beta[j, 1], beta[j, 2])
+        _, ss, st, _, _ = segment(md, stack, tmax[j])
         NB.record(nb, j, j, path_key(seed, j, 0), 0, lt, light[j], (o[j, 0], o[j, 1], o[j, 2]),
-                  (d[j, 0], d[j, 1], d[j, 2]), tmax[j], bb, segment(md, stack, tmax[j]),
-                  channel_probabilities(bb, False), g, use_eq[j], roulette[j])
+                  (d[j, 0], d[j, 1], d[j, 2]), tmax[j], (beta[j, 0], beta[j, 1], beta[j, 2]), ss, st, g,
+                  use_eq[j], roulette[j])
 
 
 @njit(cache=True)
@@ -143,7 +143,7 @@ def test_batch_matches_the_scalar_connection(medium_kw, g, mis, with_transmittan
     nb = NB.NeeBatch().arrays()
     roulette = rng.random(n) < 0.5
     _requests(nb, lt, cs.media, stack, o, d, tmax, beta, light, g, use_eq, roulette, 3)
-    NB.run(n, nb, mis, with_transmittance)
+    NB.run(n, nb, mis, with_transmittance, False)
     ref = np.zeros((10, n))
     _scalar(lt, cs.media, stack, o, d, tmax, beta, light, g, use_eq, 3, mis, ref)
     if with_transmittance:  # what shadow_media would multiply in
@@ -205,7 +205,8 @@ def test_the_batch_loops_compile_to_simd():
     keep the images right and lose the speed silently, so check the vector types in the IR."""
     options = {**JIT_OPTIONS, "cache": False}
     nb = NB.NeeBatch().arrays()
-    stages = ((NB.vertices, (16, nb)), (NB.connections, (16, nb, True, True)), (NB.advance, (16, nb)))
+    stages = ((NB.segments, (16, nb, False)), (NB.vertices, (16, nb)), (NB.connections, (16, nb, True, True)),
+              (NB.advance, (16, nb)))
     for stage, args in stages:
         fresh = njit(**options)(stage.py_func)
         fresh(*args)

@@ -60,6 +60,7 @@ from .media_api import (
     stack_is_empty,
     stack_push,
     stack_remove,
+    stack_sigma,
     transmittance,
 )
 
@@ -203,7 +204,7 @@ def _flush_nee_batch(count, nb, ps, cfg, sh, s):
     # Without interfaces a shadow ray stays in its medium, so the batch applies the
     # transmittance too (SIMD) and the ray leaves with an empty stack: shadow_media skips it.
     in_batch = cfg[CFG_WALK_SHADOWS] == 0
-    nee_batch.run(count, nb, cfg[CFG_SAMPLING] != SAMPLING_NEE, in_batch)
+    nee_batch.run(count, nb, cfg[CFG_SAMPLING] != SAMPLING_NEE, in_batch, cfg[CFG_UNIFORM_CHANNEL] != 0)
     _, q_key, q_dim, q_path, r = nb
     for j in range(count):
         i = q_path[j]
@@ -276,9 +277,6 @@ def shade_media(n, ps, prim, lt, md, cfg, L, sh, nb):
         t_hit = np.float64(ps.tmax[i]) + gap if prim[i] >= 0 else RAY_FAR
         did_nee = False
         homogeneous = not stack_has_grid(md, stack)
-        if homogeneous:
-            # Shared by the next-event vertex and the path's own free flight.
-            seg = segment(md, stack, t_hit)
         wants_nee = sampling != SAMPLING_BSDF and depth <= max_bounces and cdf.shape[0] > 1
         if wants_nee and homogeneous:
             # Decoupled next-event vertex (as Cycles): a point on the segment chosen by
@@ -289,14 +287,15 @@ def shade_media(n, ps, prim, lt, md, cfg, L, sh, nb):
             if batched and nee_batch.qualifies(lt, light, stack):
                 # The whole segment (this vertex, the free flight, the phase sample and
                 # Russian roulette) runs in the SIMD batch; only its emission is added here.
-                le = segment_emission(md, stack, seg[2], t_hit)
+                sa, ss = stack_sigma(md, stack)
+                st = add(sa, ss)
+                le = segment_emission(md, stack, st, t_hit)
                 if max3(le) > 0.0:
                     L[pid, 0] += beta[0] * le[0]
                     L[pid, 1] += beta[1] * le[1]
                     L[pid, 2] += beta[2] * le[2]
-                nee_batch.record(nb, queued, i, key, dim, lt, light, o, d, t_hit, beta, seg,
-                                 channel_probabilities(beta, uniform_channel), phase_g(md, stack[0]), use_eq,
-                                 depth + 1 >= cfg[CFG_RR_DEPTH])
+                nee_batch.record(nb, queued, i, key, dim, lt, light, o, d, t_hit, beta, ss, st,
+                                 phase_g(md, stack[0]), use_eq, depth + 1 >= cfg[CFG_RR_DEPTH])
                 queued += 1
                 if queued == nee_batch.CHUNK:
                     s = _flush_nee_batch(queued, nb, ps, cfg, sh, s)
@@ -304,12 +303,16 @@ def shade_media(n, ps, prim, lt, md, cfg, L, sh, nb):
                 continue
             lp = light_point(lt, light, uniform(key, dim + 1), uniform(key, dim + 2))
             dim += 3
+            # Shared by the next-event vertex and the path's own free flight.
+            seg = segment(md, stack, t_hit)
             tn, wn, dim = nee_vertex_on(seg, o, d, t_hit, lp, beta, key, dim, use_eq, uniform_channel)
             if max3(wn) > 0.0:
                 s = _medium_nee(ps, i, md, lt, cfg, madd(o, d, tn), d, beta, key, dim, sh, s, light, lp, wn)
             dim += MEDIUM_NEE_DIMS
             did_nee = True
         if homogeneous:
+            if not did_nee:
+                seg = segment(md, stack, t_hit)
             p = channel_probabilities(beta, uniform_channel)
             t, scattered, w, le, dim = sample_segment(md, stack, seg, t_hit, p, key, dim)
         else:

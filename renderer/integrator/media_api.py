@@ -4,7 +4,7 @@ A scene without media never reaches these: the shading kernel tests cfg[CFG_HAS_
 before touching the path's medium stack.
 """
 
-from ..media.homogeneous import segment
+from ..media.homogeneous import segment, stack_sigma
 from ..media.medium import sample_distance, sample_segment, segment_emission, transmittance
 from ..media.nee import nee_vertex_on
 from ..media.spectral import channel_probabilities
@@ -15,5 +15,5 @@ from ..media.table import phase_g
 __all__ = [
     "EMPTY", "channel_probabilities", "nee_vertex_on", "phase_eval", "phase_g", "sample_distance",
     "sample_phase", "sample_segment", "segment", "segment_emission", "stack_has_emission", "stack_has_grid",
-    "stack_is_empty", "stack_push", "stack_remove", "transmittance",
+    "stack_is_empty", "stack_push", "stack_remove", "stack_sigma", "transmittance",
 ]

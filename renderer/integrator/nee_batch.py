@@ -44,7 +44,7 @@ from renderer.lights.spherical_triangle import MIN_SOLID_ANGLE, sample_spherical
 from renderer.lights.table import TRIANGLE
 from renderer.media.equiangular import D_FLOOR, D_MIN, MIN_THETA
 from renderer.media.homogeneous import optical_depth, truncated_pdf
-from renderer.media.spectral import pick_channel
+from renderer.media.spectral import THIRD, pick_channel
 from renderer.media.stack import EMPTY
 from renderer.phase.hg import hg_direction, hg_eval
 
@@ -114,21 +114,18 @@ def qualifies(lt, light, stack):
 
 
 @inline_kernel
-def record(nb, j, path, key, dim, lt, light, o, d, tmax, beta, seg, p, g, use_equiangular, roulette):
+def record(nb, j, path, key, dim, lt, light, o, d, tmax, beta, sigma_s, sigma_t, g, use_equiangular,
+           roulette):
     """Store request j: path row `path` with random key `key` and counter `dim` at the start
-    of its segment (dims.SEG_*), which picked `light`; seg = homogeneous.segment's (sigma_a,
-    sigma_s, sigma_t, T, 1 - T); p: channel probabilities; roulette: whether Russian
-    roulette applies after a scattering event here."""
+    of its segment (dims.SEG_*), which picked `light`; the stack's sigma_s and sigma_t;
+    roulette: whether Russian roulette applies after a scattering event here."""
     q, q_key, q_dim, q_path, _ = nb
     _put3(q, Q_O, j, o)
     _put3(q, Q_D, j, d)
     q[Q_TMAX * CHUNK + j] = tmax
     _put3(q, Q_BETA, j, beta)
-    _put3(q, Q_SS, j, seg[1])
-    _put3(q, Q_ST, j, seg[2])
-    _put3(q, Q_TR, j, seg[3])
-    _put3(q, Q_MISS, j, seg[4])
-    _put3(q, Q_P, j, p)
+    _put3(q, Q_SS, j, sigma_s)
+    _put3(q, Q_ST, j, sigma_t)
     q[Q_G * CHUNK + j] = g
     q[Q_EQUIANGULAR * CHUNK + j] = 1.0 if use_equiangular else 0.0
     q[Q_RR * CHUNK + j] = 1.0 if roulette else 0.0
@@ -257,6 +254,53 @@ def connect_triangle(p0, p1, p2, lp, area, x, u1, u2):
     return wi, dist, cos_l < 0.0, pdf
 
 
+@inline_kernel
+def _one_minus_exp_neg(x, tr):
+    """1 - exp(-x) given tr = exp(-x) (homogeneous._one_minus): 1 - tr above 0.1, and below
+    it -expm1(-x) by its series x - x^2/2! + ... - x^12/12! (next term < 1e-17 relative)."""
+    xs = min(x, 0.1)
+    p = -1.0 / 479001600.0
+    p = p * xs + 1.0 / 39916800.0
+    p = p * xs - 1.0 / 3628800.0
+    p = p * xs + 1.0 / 362880.0
+    p = p * xs - 1.0 / 40320.0
+    p = p * xs + 1.0 / 5040.0
+    p = p * xs - 1.0 / 720.0
+    p = p * xs + 1.0 / 120.0
+    p = p * xs - 1.0 / 24.0
+    p = p * xs + 1.0 / 6.0
+    p = p * xs - 0.5
+    p = p * xs + 1.0
+    return 1.0 - tr if x > 0.1 else xs * p
+
+
+@kernel
+def segments(n, nb, uniform_channel):
+    """Stage 0: the segment constants of homogeneous.segment (T(tmax) and 1 - T(tmax) per
+    channel) and the channel probabilities of spectral MIS."""
+    q, _, _, _, _ = nb
+    for j in range(n):
+        tmax = q[Q_TMAX * CHUNK + j]
+        x0 = optical_depth(q[Q_ST * CHUNK + j], tmax)
+        x1 = optical_depth(q[(Q_ST + 1) * CHUNK + j], tmax)
+        x2 = optical_depth(q[(Q_ST + 2) * CHUNK + j], tmax)
+        tr0, tr1, tr2 = sm.exp_neg(x0), sm.exp_neg(x1), sm.exp_neg(x2)
+        _put3(q, Q_TR, j, (tr0, tr1, tr2))
+        q[Q_MISS * CHUNK + j] = _one_minus_exp_neg(x0, tr0)
+        q[(Q_MISS + 1) * CHUNK + j] = _one_minus_exp_neg(x1, tr1)
+        q[(Q_MISS + 2) * CHUNK + j] = _one_minus_exp_neg(x2, tr2)
+        # spectral.channel_probabilities without its early returns
+        a = max(q[Q_BETA * CHUNK + j], 0.0)
+        b = max(q[(Q_BETA + 1) * CHUNK + j], 0.0)
+        c = max(q[(Q_BETA + 2) * CHUNK + j], 0.0)
+        total = a + b + c
+        by_throughput = not uniform_channel and total > 0.0 and total < math.inf
+        inv = 1.0 / total if by_throughput else 1.0
+        q[Q_P * CHUNK + j] = a * inv if by_throughput else THIRD
+        q[(Q_P + 1) * CHUNK + j] = b * inv if by_throughput else THIRD
+        q[(Q_P + 2) * CHUNK + j] = c * inv if by_throughput else THIRD
+
+
 @kernel
 def vertices(n, nb):
     """Stage 1: the light point and the next-event vertex x of requests 0..n-1, and the
@@ -377,8 +421,9 @@ def advance(n, nb):
 
 
 @kernel
-def run(n, nb, mis, with_transmittance):
-    """All three stages for requests 0..n-1."""
+def run(n, nb, mis, with_transmittance, uniform_channel):
+    """All the stages for requests 0..n-1."""
+    segments(n, nb, uniform_channel)
     vertices(n, nb)
     connections(n, nb, mis, with_transmittance)
     advance(n, nb)
