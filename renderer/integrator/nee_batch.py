@@ -59,11 +59,13 @@ R_Y, R_DIR, R_BETA, R_PDF, R_STATE, R_DIM = 13, 16, 19, 22, 23, 24
 R_ROWS = 25
 # R_STATE: what became of the path on its segment.
 DEAD, PASSED, SCATTERED = 0.0, 1.0, 2.0
-# Requests per SIMD pass: 1.5 MB of request rows, which stay in cache. Not a power of two: with
-# rows exactly 32 KiB apart, the stores of one request all fell into one cache set and
-# recording took 200 ns a request instead of a few (measured); one extra cache line per row
-# spreads them over as many sets as there are rows.
-CHUNK = 4096 + 8
+# Requests per SIMD pass: 1032 requests' rows (Q_ROWS + R_ROWS of them) take 0.6 MB, which
+# stays in a core's 1 MB L2 cache; with 4104 (2.3 MB) two processes on this machine's two
+# cores scaled 1.67x instead of 1.90x (fog box, 128x128; one process: 0.85 vs 0.87 M
+# samples/s). Not a power of two: with rows exactly a power of two apart, the stores of one
+# request all fell into one cache set and recording took 200 ns a request instead of a few
+# (measured); one extra cache line per row spreads them over as many sets as there are rows.
+CHUNK = 1024 + 8
 
 
 class NeeBatch:
