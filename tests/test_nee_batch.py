@@ -135,7 +135,7 @@ def test_batch_matches_the_scalar_connection(medium_kw, g, mis, with_transmittan
     lt = (lt.kind, lt.pos, lt.vec_a, lt.vec_b, lt.color, lt.color_b, lt.param, lt.pmf, lt.cdf)
     stack = np.array([0, -1, -1, -1], np.int32)
     g = float(cs.media.params[0, P_G])  # as stored (float32), which the scalar phase sampling reads
-    n = 4000
+    n = NB.CHUNK  # one full pass (record writes rows 0..CHUNK-1 unchecked)
     rng = np.random.default_rng(11)
     o, d, tmax, beta = _rays(cs, n, rng)
     light = rng.integers(0, len(lt[7]), n).astype(np.int32)
