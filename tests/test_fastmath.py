@@ -5,6 +5,8 @@ Deterministic: the bound is a few units in the last place (the series are trunca
 orders of magnitude larger.
 """
 
+import math
+
 import numpy as np
 from numba import njit
 
@@ -95,13 +97,14 @@ def test_sincos():
 
 @njit(cache=True)
 def _simd_all(x, y):
-    out = np.empty((x.shape[0], 6))
+    out = np.empty((x.shape[0], 7))
     for i in range(x.shape[0]):
         out[i, 0] = sm.exp_neg(x[i])
         out[i, 1] = sm.log1p(-y[i])
         out[i, 2] = sm.atan2(y[i], x[i] - 1.0)
         out[i, 3], out[i, 4] = sm.sincos(x[i])
         out[i, 5] = sm.log_normal(x[i] + 1e-300)
+        out[i, 6] = sm.one_minus_exp_neg(x[i], math.exp(-x[i]))
     return out
 
 
@@ -118,5 +121,6 @@ def test_branch_free_versions_match_numpy():
     assert np.max(np.abs(out[small, 3] - np.sin(x[small]))) < 2 * np.finfo(np.float64).eps
     assert np.max(np.abs(out[small, 4] - np.cos(x[small]))) < 2 * np.finfo(np.float64).eps
     assert _rel(out[:, 5], np.log(x + 1e-300)) < ULPS
+    assert _rel(out[:, 6], -np.expm1(-x)) < ULPS
     # exp(-x) is 0 past 708 (where libm would give a subnormal) and at infinity.
     assert _simd_all(np.array([708.5, np.inf]), np.zeros(2))[:, 0].tolist() == [0.0, 0.0]

@@ -220,18 +220,26 @@ def _flush_nee_batch(count, nb, ps, cfg, sh, s):
         if state == nee_batch.DEAD:
             ps.alive[i] = 0
             continue
-        _put(ps.beta, i, beta)
         if state == nee_batch.PASSED:
+            _put(ps.beta, i, beta)
             continue
-        ps.depth[i] += 1
-        ps.mis_pdf[i] = pdf
-        _put(ps.mis_o, i, y)
-        _put(ps.o, i, y)
-        _put(ps.d, i, wo)
-        ps.tmax[i] = RAY_FAR
-        ps.gap[i] = 0.0
+        _scatter_in_medium(ps, i, beta, ps.depth[i], y, wo, pdf)
         ps.alive[i] = 2
     return s
+
+
+@inline_kernel
+def _scatter_in_medium(ps, i, beta, depth, x, wi, pdf):
+    """Path i scattered at medium point x (its depth-th event) into wi with phase pdf `pdf`:
+    its next ray starts there, with throughput beta."""
+    _put(ps.beta, i, beta)
+    ps.depth[i] = depth + 1
+    ps.mis_pdf[i] = pdf
+    _put(ps.mis_o, i, x)
+    _put(ps.o, i, x)
+    _put(ps.d, i, wi)
+    ps.tmax[i] = RAY_FAR
+    ps.gap[i] = 0.0
 
 
 @inline_kernel
@@ -340,14 +348,7 @@ def shade_media(n, ps, prim, lt, md, cfg, L, sh, nb):
         wi, pw, ph_pdf = sample_phase(md, stack, x, d, uniform(key, dim), uniform(key, dim + 1),
                                       uniform(key, dim + 2))
         dim += 3
-        _put(ps.beta, i, mul(beta, pw))
-        ps.depth[i] = depth + 1
-        ps.mis_pdf[i] = ph_pdf
-        _put(ps.mis_o, i, x)
-        _put(ps.o, i, x)
-        _put(ps.d, i, wi)
-        ps.tmax[i] = RAY_FAR
-        ps.gap[i] = 0.0
+        _scatter_in_medium(ps, i, mul(beta, pw), depth, x, wi, ph_pdf)
         alive, dim = _russian_roulette(ps, i, key, dim, cfg[CFG_RR_DEPTH])
         ps.alive[i] = 2 if alive else 0
         ps.dim[i] = dim

@@ -256,26 +256,6 @@ def connect_triangle(p0, p1, p2, lp, area, x, u1, u2):
     return wi, dist, cos_l < 0.0, pdf
 
 
-@inline_kernel
-def _one_minus_exp_neg(x, tr):
-    """1 - exp(-x) given tr = exp(-x) (homogeneous._one_minus): 1 - tr above 0.1, and below
-    it -expm1(-x) by its series x - x^2/2! + ... - x^12/12! (next term < 1e-17 relative)."""
-    xs = min(x, 0.1)
-    p = -1.0 / 479001600.0
-    p = p * xs + 1.0 / 39916800.0
-    p = p * xs - 1.0 / 3628800.0
-    p = p * xs + 1.0 / 362880.0
-    p = p * xs - 1.0 / 40320.0
-    p = p * xs + 1.0 / 5040.0
-    p = p * xs - 1.0 / 720.0
-    p = p * xs + 1.0 / 120.0
-    p = p * xs - 1.0 / 24.0
-    p = p * xs + 1.0 / 6.0
-    p = p * xs - 0.5
-    p = p * xs + 1.0
-    return 1.0 - tr if x > 0.1 else xs * p
-
-
 @kernel
 def segments(n, nb, uniform_channel):
     """Stage 0: the segment constants of homogeneous.segment (T(tmax) and 1 - T(tmax) per
@@ -288,9 +268,9 @@ def segments(n, nb, uniform_channel):
         x2 = optical_depth(q[(Q_ST + 2) * CHUNK + j], tmax)
         tr0, tr1, tr2 = sm.exp_neg(x0), sm.exp_neg(x1), sm.exp_neg(x2)
         _put3(q, Q_TR, j, (tr0, tr1, tr2))
-        q[Q_MISS * CHUNK + j] = _one_minus_exp_neg(x0, tr0)
-        q[(Q_MISS + 1) * CHUNK + j] = _one_minus_exp_neg(x1, tr1)
-        q[(Q_MISS + 2) * CHUNK + j] = _one_minus_exp_neg(x2, tr2)
+        q[Q_MISS * CHUNK + j] = sm.one_minus_exp_neg(x0, tr0)
+        q[(Q_MISS + 1) * CHUNK + j] = sm.one_minus_exp_neg(x1, tr1)
+        q[(Q_MISS + 2) * CHUNK + j] = sm.one_minus_exp_neg(x2, tr2)
         # spectral.channel_probabilities without its early returns
         a = max(q[Q_BETA * CHUNK + j], 0.0)
         b = max(q[(Q_BETA + 1) * CHUNK + j], 0.0)

@@ -4,7 +4,7 @@ A branch or a call inside a loop body stops LLVM's loop vectoriser, so these com
 case and choose with selects; a loop that calls them compiles to SIMD code (AVX-512: 8 paths
 per instruction). They leave out fastmath.py's range checks (and its libm fallbacks), so
 they assume what their callers guarantee, stated on each function. atan2, sincos and the log
-are fastmath.py's own branch-free series; exp(-x) and log1p are written here.
+are fastmath.py's own branch-free series; exp(-x), log1p and 1 - exp(-x) are written here.
 """
 
 import math
@@ -19,7 +19,7 @@ from renderer.kernels.fastmath import (
 from renderer.kernels.fastmath import atan2_finite as atan2
 from renderer.kernels.fastmath import sincos_reduced as sincos
 
-__all__ = ["atan2", "exp_neg", "log1p", "log_normal", "sincos"]
+__all__ = ["atan2", "exp_neg", "log1p", "log_normal", "one_minus_exp_neg", "sincos"]
 
 INV_LN2 = 1.0 / math.log(2.0)
 EXP_NEG_MAX = 708.0  # exp(-708) = 3.3e-308, the last value above the normal range's floor
@@ -58,3 +58,23 @@ def log1p(x):
     exact = u == 1.0
     v = log_normal(u) * (x / (u - 1.0 if not exact else 1.0))
     return x if exact else v
+
+
+@inline_kernel
+def one_minus_exp_neg(x, tr):
+    """1 - exp(-x) given tr = exp(-x) (homogeneous._one_minus): 1 - tr above 0.1, and below
+    it -expm1(-x) by its series x - x^2/2! + ... - x^12/12! (next term < 1e-17 relative)."""
+    xs = min(x, 0.1)
+    p = -1.0 / 479001600.0
+    p = p * xs + 1.0 / 39916800.0
+    p = p * xs - 1.0 / 3628800.0
+    p = p * xs + 1.0 / 362880.0
+    p = p * xs - 1.0 / 40320.0
+    p = p * xs + 1.0 / 5040.0
+    p = p * xs - 1.0 / 720.0
+    p = p * xs + 1.0 / 120.0
+    p = p * xs - 1.0 / 24.0
+    p = p * xs + 1.0 / 6.0
+    p = p * xs - 0.5
+    p = p * xs + 1.0
+    return 1.0 - tr if x > 0.1 else xs * p
