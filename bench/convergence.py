@@ -1,5 +1,5 @@
 """Error against run time, Haze and Cycles side by side:
-`python -m renderer.bench convergence [--scenes ...] [--budgets ...] [--quick]`. Prints figures;
+`python -m bench convergence [--scenes ...] [--budgets ...] [--quick]`. Prints figures;
 asserts nothing.
 
 For each benchmark scene (128x128, both cores):
@@ -44,10 +44,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ..film import REL_EPS, Film
-from ..scene import Scene
+from renderer.film import REL_EPS, Film
+from renderer.scene import Scene
 
-REPO = Path(__file__).resolve().parents[2]
+REPO = Path(__file__).resolve().parents[1]
 CACHE = REPO / "bench" / "cache" / "convergence"
 DOCS = REPO / "docs" / "convergence"
 CYCLES_TOOL = REPO / "tools" / "cycles_reference.py"
@@ -103,8 +103,7 @@ def _chromatic(size: int) -> Scene:
     thick in red (27 across), thin in blue (0.27)."""
     from examples.media_scenes import INTERFACE, MEDIA_MAX_BOUNCES, interface_material
     from examples.scenes import box, cornell_box
-
-    from ..scene import Medium, Mesh
+    from renderer.scene import Medium, Mesh
 
     scene = cornell_box(size, 1, max_bounces=MEDIA_MAX_BOUNCES, boxes=False)
     sigma_s = tuple(CHROMATIC_ALBEDO * s for s in CHROMATIC_SIGMA_T)
@@ -237,7 +236,7 @@ class Curve:
 def haze_curve(scene: Scene, label: str, overrides: dict, reference: Reference, max_seconds: float,
                workers: int) -> Curve:
     """One progressive render: the error of the image after every pass against its elapsed time."""
-    from ..render import render_progressive
+    from renderer.render import render_progressive
 
     scene = copy.deepcopy(scene)
     for key, value in overrides.items():
@@ -268,7 +267,7 @@ def haze_curve(scene: Scene, label: str, overrides: dict, reference: Reference, 
 def scene_folder(scene: Scene, name: str) -> Path:
     """The scene saved under the cache, in a folder named by a hash of its content, so a
     changed scene never meets a stale reference."""
-    from ..scenefile import save_scene
+    from renderer.scenefile import save_scene
 
     with tempfile.TemporaryDirectory() as tmp:
         save_scene(scene, tmp)
@@ -296,7 +295,7 @@ def haze_reference(scene: Scene, folder: Path, target: float, time_cap: float, w
     """Haze's converged image: rendered until its estimated relMSE is below `target` or
     `time_cap` seconds were spent on it in total; cached, and extended with a new seed (an
     independent sample set that merges with the old one) when asked for less error."""
-    from ..render import render_progressive
+    from renderer.render import render_progressive
 
     path = folder / f"haze_reference_seed{REFERENCE_SEED}.npz"
     film, meta = _load_film(path, scene.film.width, scene.film.height)
@@ -338,7 +337,7 @@ def run_cycles(scene_dir: Path, out: Path, samples: list[int], seeds: tuple[int,
 
 
 def cycles_images(timings: dict, seed: int) -> list[tuple[dict, np.ndarray]]:
-    from ..imageio import read_exr
+    from renderer.imageio import read_exr
 
     renders = [r for r in timings["renders"] if r["seed"] == seed]
     return [(r, read_exr(r["path"]).astype(np.float64)) for r in sorted(renders, key=lambda r: r["samples"])]
@@ -662,7 +661,7 @@ def report(results: list[SceneResult], options: Options, command: str, load_befo
 
 
 def parse_arguments(argv: list[str] | None) -> tuple[Options, bool]:
-    p = argparse.ArgumentParser(prog="python -m renderer.bench convergence",
+    p = argparse.ArgumentParser(prog="python -m bench convergence",
                                 description=__doc__.splitlines()[0])
     p.add_argument("--scenes", nargs="+", choices=list(SCENES), default=None)
     p.add_argument("--budgets", type=float, nargs="+", default=None, help="seconds (default 0.5 1 2 ... 16)")
@@ -694,7 +693,7 @@ def parse_arguments(argv: list[str] | None) -> tuple[Options, bool]:
 
 def main(argv: list[str] | None = None) -> int:
     options, _ = parse_arguments(argv)
-    command = "python -m renderer.bench convergence " + " ".join(argv or [])
+    command = "python -m bench convergence " + " ".join(argv or [])
     load_before = machine_line()
     print(f"{command.strip()}\n{load_before}", flush=True)
     started = time.perf_counter()
