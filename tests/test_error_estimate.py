@@ -23,7 +23,8 @@ import math
 import numpy as np
 import pytest
 
-from bench.convergence import SCENES, Reference, film_reference
+from bench.metrics import Reference, film_reference
+from bench.scenes import SCENES
 from renderer.compile import compile_scene
 from renderer.film import Film
 from renderer.integrator.wavefront import Tracer
