@@ -60,7 +60,7 @@ lint: $(STAMP)
 	$(VENV)/bin/ruff check .
 
 bench: $(STAMP)
-	$(PY) -m renderer.bench
+	$(PY) -m bench
 
 extension: $(STAMP)
 	$(PY) tools/build_extension.py

@@ -59,7 +59,7 @@ class Film:
         pixel's variance and its mean together, so its term stays below ~1 however wrong
         the pixel is, and the estimate fell 3-14x below the true error at 4-16 spp in fog
         (g = 0.9); the neighbourhood barely moves with one firefly. Measured by
-        `python -m renderer.bench convergence` on five scenes: within 0.94-1.8x of the true
+        `python -m bench convergence` on five scenes: within 0.94-1.8x of the true
         relMSE from 4 spp on (docs/convergence/tables.md)."""
         if self.spp < 2:
             return float("nan")

@@ -2,7 +2,7 @@
 
 The estimate is what the progress line shows and what --target-error stops on, so it must
 track the relMSE a converged reference would measure. For every benchmark scene of
-`python -m renderer.bench convergence`, at 32x32:
+`python -m bench convergence`, at 32x32:
 
 * a reference of REFERENCE_SPP samples per pixel (seed 1000), whose own noise is subtracted
   from the measured error (relMSE against a noisy reference = true relMSE + its noise);
@@ -23,7 +23,8 @@ import math
 import numpy as np
 import pytest
 
-from renderer.bench.convergence import SCENES, Reference, film_reference
+from bench.metrics import Reference, film_reference
+from bench.scenes import SCENES
 from renderer.compile import compile_scene
 from renderer.film import Film
 from renderer.integrator.wavefront import Tracer

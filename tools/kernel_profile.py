@@ -5,7 +5,7 @@ One core, in this process, after a warm-up pass. Every kernel call from the batc
 and every Embree call is timed with the thread's CPU clock (time.thread_time), and each
 part's figure is the best of --repeats runs (this VM's one-core speed swings by up to 25%
 from run to run, so the minimum is the figure that repeats). Columns: ns per pixel sample
-and the share of the best run's total. Scenes: those of `python -m renderer.bench speed`.
+and the share of the best run's total. Scenes: those of `python -m bench speed`.
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ REPO = Path(__file__).resolve().parents[1]
 if str(REPO) not in sys.path:
     sys.path.insert(0, str(REPO))
 
-from renderer.bench.speed import _scenes  # noqa: E402
+from bench.speed import _scenes  # noqa: E402
 from renderer.compile import compile_scene  # noqa: E402
 from renderer.film import Film  # noqa: E402
 from renderer.integrator import wavefront  # noqa: E402

@@ -1,11 +1,11 @@
-"""`python -m renderer.bench [speed] [options]`: the speed benchmark (default).
+"""`python -m bench [speed] [options]`: the speed benchmark (default).
 
 Other studies register here as subcommands (see COMMANDS)."""
 
 import importlib
 import sys
 
-COMMANDS = {"speed": "renderer.bench.speed", "convergence": "renderer.bench.convergence"}
+COMMANDS = {"speed": "bench.speed", "convergence": "bench.convergence"}
 
 
 def main(argv: list[str]) -> int:

@@ -1,4 +1,4 @@
-"""Speed benchmark: `python -m renderer.bench speed` (or `make bench`). Prints figures; asserts nothing.
+"""Speed benchmark: `python -m bench speed` (or `make bench`). Prints figures; asserts nothing.
 
 For each example at 128x128 and 256x256: M samples/s on one core (CPU time), path
 vertices/s, the share of time spent inside Embree, and samples/s with two worker processes
@@ -15,7 +15,7 @@ import subprocess
 import sys
 import time
 
-from ..film import Film
+from renderer.film import Film
 
 
 def _scenes(size: int):
@@ -50,8 +50,8 @@ class _EmbreeTimer:
 
 
 def one_core(scene, spp: int) -> dict:
-    from ..compile import compile_scene
-    from ..integrator.wavefront import Tracer
+    from renderer.compile import compile_scene
+    from renderer.integrator.wavefront import Tracer
 
     cs = compile_scene(scene)
     tracer = Tracer(cs, scene.integrator)
@@ -77,8 +77,8 @@ def _surface_only_kernels():
 
     from numba import njit
 
-    from ..integrator import kernels
-    from ..kernels import JIT_OPTIONS
+    from renderer.integrator import kernels
+    from renderer.kernels import JIT_OPTIONS
 
     uncached = {**JIT_OPTIONS, "cache": False}  # a module built from a string has no cache file
     src = inspect.getsource(kernels).replace("@inline_kernel\n", "@_uncached_inline\n")
@@ -95,9 +95,9 @@ def _surface_only_kernels():
 def media_overhead(scene, spp: int, repeats: int = 3) -> float:
     """Relative slow-down of the media-capable kernels against the same kernels with media
     compiled out, on a scene without media (best of `repeats`, CPU time)."""
-    from ..compile import compile_scene
-    from ..integrator import wavefront
-    from ..integrator.wavefront import Tracer
+    from renderer.compile import compile_scene
+    from renderer.integrator import wavefront
+    from renderer.integrator.wavefront import Tracer
 
     cs = compile_scene(scene)
     times = {}
@@ -121,7 +121,7 @@ def media_overhead(scene, spp: int, repeats: int = 3) -> float:
 def two_processes(scene, seconds: float = 6.0) -> float:
     """Samples/s with 2 worker processes over about `seconds` of wall time, counted from the
     first finished pass (so the workers' start-up is left out), in M/s."""
-    from ..render import render_progressive
+    from renderer.render import render_progressive
 
     scene.integrator.spp = 1 << 20
     scene.integrator.time_limit = seconds
@@ -150,7 +150,7 @@ def startup(cold: bool) -> float:
 
 
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(prog="python -m renderer.bench speed")
+    p = argparse.ArgumentParser(prog="python -m bench speed")
     p.add_argument("--spp", type=int, default=16, help="samples per pixel per measurement")
     p.add_argument("--sizes", type=int, nargs="+", default=[128, 256])
     p.add_argument("--no-startup", action="store_true")
