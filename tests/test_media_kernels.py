@@ -30,7 +30,7 @@ from renderer.media import (
     transmittance,
 )
 from renderer.media.blackbody import blackbody_emission, blackbody_emission_voxels, blackbody_rgb
-from renderer.media.compile import I_HAS_EMISSION, I_MAJ_DIMS, I_MAJ_OFFSET, P_G
+from renderer.media.layout import I_HAS_EMISSION, I_MAJ_DIMS, I_MAJ_OFFSET, P_G
 from renderer.media.emission import stack_emission
 from renderer.media.grid import grid_lookup
 from renderer.media.tracking import _sigma_at
