@@ -5,9 +5,9 @@ medium coefficients per world unit. Arrays are structure-of-arrays with the shap
 on each field. Objects refer to one another by name (a mesh names its materials, a mesh
 or the scene names its medium), so a scene file reads like the scene.
 
-The scene's vocabulary (the words a string field may hold, and their order, which the
-kernels' integer codes follow) is defined here once; `renderer.validate` checks a Scene
-against it, `renderer.scenefile` reads and writes the folder format, `renderer.compile`
+The scene's vocabulary (the words a string field may hold and, for the kernels, their
+integer codes) and its limits are defined here once; `renderer.validate` checks a Scene
+against them, `renderer.scenefile` reads and writes the folder format, `renderer.compile`
 flattens a Scene into the kernels' arrays.
 """
 
@@ -26,7 +26,8 @@ RGB = tuple[float, float, float]
 LUMINANCE: RGB = (0.2126, 0.7152, 0.0722)
 
 # ---------------------------------------------------------------------------- vocabulary
-# Each dict maps the word a scene uses to the integer code the kernels dispatch on.
+# A dict maps the words of a field to the integer codes the kernels dispatch on; a tuple
+# lists the words of a field only Python reads.
 
 LOBE_KINDS: dict[str, int] = {
     "diffuse": 0,
