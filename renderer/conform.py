@@ -41,10 +41,12 @@ MATRIX_FIELDS = frozenset({"to_world"})
 
 
 def join(path: str, name: str) -> str:
+    """The path of field `name` of the object at `path` ("" is the scene itself)."""
     return f"{path}.{name}" if path else name
 
 
 def require(condition: bool, path: str, problem: str) -> None:
+    """Raise SceneError(path, problem) unless `condition` holds."""
     if not condition:
         raise SceneError(path, problem)
 
