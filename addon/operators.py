@@ -35,7 +35,8 @@ def export_to_folder(context, folder: Path) -> list[str]:
     if problem:
         raise ExportError("Haze", problem)
     from renderer.errors import SceneError
-    from renderer.scenefile import save_scene, validate_scene
+    from renderer.scenefile import save_scene
+    from renderer.validate import validate_scene
 
     from .export.scene import export_scene
     from .session import describe_scene_error

@@ -169,7 +169,7 @@ class RenderSession:
     def _export(self):
         from renderer.errors import SceneError
         from renderer.scene import Film
-        from renderer.scenefile import validate_scene
+        from renderer.validate import validate_scene
 
         from .export.scene import export_scene
 

@@ -2,7 +2,9 @@
 
 Every mesh is merged into one triangle soup (a global triangle index per hit); materials
 become the lobe table of `renderer.bsdfs`; lights become a LightTable; media become the
-MediaTable of `renderer.media`. Nothing here runs per ray.
+MediaData of `renderer.media`. Nothing here runs per ray, and nothing here is written
+after compiling: buffers the kernels write (path state, the majorant walk's scratch) belong
+to the tracer.
 """
 
 from __future__ import annotations
@@ -15,11 +17,10 @@ import numpy as np
 
 from .bsdfs.table import build_material_table
 from .lights.table import LightTable, build_light_table
-from .media.compile import compile_media
-from .scene import Scene
-
-SIDES = {"front": 1, "back": 2, "both": 3}
-MAX_STACK = 4
+from .media.compile import build_media_data
+from .media.layout import MediaData
+from .scene import MAX_STACK as MAX_STACK  # re-exported: the integrator sizes its stacks with it
+from .scene import SIDES, Scene
 
 
 class Geometry(NamedTuple):
@@ -60,7 +61,7 @@ class CompiledScene:
     geometry: Geometry
     materials: tuple  # renderer.bsdfs material table
     lights: LightTable
-    media: tuple  # renderer.media MediaTable
+    media: MediaData  # immutable; the tracer adds its scratch for the kernels
     camera: CameraParams
     width: int
     height: int
@@ -120,7 +121,7 @@ def compile_scene(scene: Scene) -> CompiledScene:
                                radius)
     geometry = _geometry_from_meshes(scene, vertices, indices, tri_mat, tri_med, lights.tri_light)
     materials = build_material_table(scene.materials)
-    media = compile_media(scene.media, scene.integrator.majorant_grid)
+    media = build_media_data(scene.media, scene.integrator.majorant_grid)
     world_medium = -1 if scene.medium is None else medium_index[scene.medium]
     has_media = bool(len(scene.media)) and (world_medium >= 0 or bool((tri_med >= 0).any()))
     # Shadow rays need an interface walk when a surface can let them through: a medium

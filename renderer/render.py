@@ -40,7 +40,7 @@ class Progress:
 
 
 def _validate(scene: Scene) -> None:
-    from .scenefile import validate_scene
+    from .validate import validate_scene
 
     validate_scene(scene)
 

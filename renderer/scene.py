@@ -5,8 +5,10 @@ medium coefficients per world unit. Arrays are structure-of-arrays with the shap
 on each field. Objects refer to one another by name (a mesh names its materials, a mesh
 or the scene names its medium), so a scene file reads like the scene.
 
-Validation and the folder format live in `renderer.scenefile`; `renderer.compile` flattens
-a Scene into the kernels' arrays.
+The scene's vocabulary (the words a string field may hold and, for the kernels, their
+integer codes) and its limits are defined here once; `renderer.validate` checks a Scene
+against them, `renderer.scenefile` reads and writes the folder format, `renderer.compile`
+flattens a Scene into the kernels' arrays.
 """
 
 from __future__ import annotations
@@ -18,6 +20,35 @@ import numpy as np
 SCENE_FORMAT_VERSION = 1
 
 RGB = tuple[float, float, float]
+
+# Luminance of a linear Rec.709 RGB colour (what "brightness" means for light selection,
+# lobe selection and normalised blackbody colours).
+LUMINANCE: RGB = (0.2126, 0.7152, 0.0722)
+
+# ---------------------------------------------------------------------------- vocabulary
+# A dict maps the words of a field to the integer codes the kernels dispatch on; a tuple
+# lists the words of a field only Python reads.
+
+LOBE_KINDS: dict[str, int] = {
+    "diffuse": 0,
+    "dielectric": 1,  # smooth glass
+    "conductor": 2,  # smooth mirror tinted by color
+    "rough_conductor": 3,  # GGX reflection, Cycles' Glossy BSDF
+    "plastic": 4,  # GGX dielectric coat over a Lambertian base
+    "transparent": 5,  # straight pass-through tinted by color
+}
+CONDUCTOR_KINDS = ("conductor", "rough_conductor")  # the kinds that take a `fresnel` mode
+FRESNEL_MODES: dict[str, int] = {"constant": 0, "f82": 1}
+# Faces a lobe or an emission exists on, as a bitmask: 1 front, 2 back.
+SIDES: dict[str, int] = {"front": 1, "back": 2, "both": 3}
+MEDIUM_TYPES: dict[str, int] = {"homogeneous": 0, "grid": 1}
+FOV_AXES = ("x", "y")
+SAMPLING_MODES = ("mis", "nee", "bsdf")
+TRANSMITTANCE_MODES = ("ratio", "delta")
+DISTANCE_SAMPLING_MODES = ("spectral_mis", "uniform")
+# Media overlapping at one point: a path's medium stack holds at most this many (a further
+# overlapping medium is ignored rather than crashing a render).
+MAX_STACK = 4
 
 
 @dataclass
@@ -127,6 +158,8 @@ class SunLight:
 
 
 Light = PointLight | SpotLight | SunLight
+# The one registry of light kinds: the `type` tag of each light class.
+LIGHT_TYPES: dict[str, type] = {"point": PointLight, "spot": SpotLight, "sun": SunLight}
 
 
 @dataclass

@@ -30,9 +30,9 @@ from renderer.media import (
     transmittance,
 )
 from renderer.media.blackbody import blackbody_emission, blackbody_emission_voxels, blackbody_rgb
-from renderer.media.compile import I_HAS_EMISSION, I_MAJ_DIMS, I_MAJ_OFFSET, P_G
 from renderer.media.emission import stack_emission
 from renderer.media.grid import grid_lookup
+from renderer.media.layout import I_HAS_EMISSION, I_MAJ_DIMS, I_MAJ_OFFSET, P_G
 from renderer.media.tracking import _sigma_at
 from renderer.phase.hg import hg_eval
 from renderer.scene import Medium

@@ -31,7 +31,7 @@ from renderer.integrator import kernels
 from renderer.render import render_progressive
 from renderer.scene import Environment, IntegratorSettings, Medium, Mesh, Scene
 from renderer.scene import Film as FilmSettings
-from renderer.scenefile import validate_scene
+from renderer.validate import validate_scene
 
 Z = 5.0
 RTOL = 1e-5  # rounding of radiance arithmetic

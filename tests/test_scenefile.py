@@ -30,7 +30,8 @@ from renderer.scene import (
     SpotLight,
     SunLight,
 )
-from renderer.scenefile import load_scene, save_scene, validate_scene
+from renderer.scenefile import load_scene, save_scene
+from renderer.validate import validate_scene
 
 NAN, INF = float("nan"), float("inf")
 DELETE = object()  # marks a key to remove in `_assign`

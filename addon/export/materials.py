@@ -16,13 +16,12 @@ import warnings
 
 import numpy as np
 
-from renderer.scene import Lobe, Material, Medium
+from renderer.scene import LOBE_KINDS, Lobe, Material, Medium
 
 from .messages import Messages, material_subject
 from .nodes import VOLUME_KINDS, ShaderGraph, Term, as_volume_terms, rgb
 
 DEFAULT_MATERIAL_NAME = "Haze Default Surface"
-LOBE_KINDS = {"diffuse", "dielectric", "conductor", "rough_conductor", "plastic", "transparent"}
 MAX_ANISOTROPY = 1.0 - 1e-3  # Cycles clamps Henyey-Greenstein g to this magnitude
 BLACK = (0.0, 0.0, 0.0)
 

@@ -23,11 +23,10 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from renderer.scene import LUMINANCE  # Rec. 709 (Blender's linear space): implicit colour-to-float
+
 from .messages import Messages, node_subject
 
-# Rec. 709 luminance (Blender's default linear working space), used where Blender converts a
-# colour to a float implicitly.
-LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
 FRONT, BACK = 0, 1
 SIDE_NAMES = ("front", "back")
 SCALAR_TYPES = {"VALUE", "INT", "BOOLEAN"}

@@ -1,13 +1,8 @@
 """A material's BSDF: the weighted sum of its lobes on the side that was hit.
 
-The material table `mt` (renderer.bsdfs.table.build_material_table) is the pair
-    (mats i32 (M, 2): first lobe, lobe count;
-     lobes f32 (L, 14): kind, weight rgb, color rgb, roughness, ior, sides bitmask
-                        (1 = front, 2 = back), Fresnel mode, tint rgb; see the L_* column
-                        constants).
-Two arrays rather than one per field: every array handed to a non-inlined numba function
-costs a reference-count round trip per call, which dominated shading time (measured: 296
-ns per diffuse bsdf_sample with eight arrays).
+The material table `mt` (renderer.bsdfs.table.build_material_table) is the pair (mats,
+lobes) laid out in renderer.bsdfs.layout: per material its first lobe and lobe count, per
+lobe its kind, weight, color, roughness, ior, sides bitmask, Fresnel mode and tint.
 
 Sampling picks one lobe with probability proportional to its selection weight
 luminance(weight * color) (luminance(weight) for dielectric and plastic, whose coat reflects
@@ -25,6 +20,18 @@ Events of bsdf_sample:
 """
 
 from renderer.bsdfs import DIELECTRIC, FRESNEL_F82, PLASTIC, SIDE_BACK, SIDE_FRONT, TRANSPARENT
+from renderer.bsdfs.layout import (
+    L_COLOR,
+    L_FRESNEL,
+    L_IOR,
+    L_KIND,
+    L_ROUGH,
+    L_SIDES,
+    L_TINT,
+    L_WEIGHT,
+    M_COUNT,
+    M_FIRST,
+)
 from renderer.bsdfs.lobe import lobe_eval, lobe_sample
 from renderer.kernels import inline_kernel
 from renderer.kernels.vecmath import luminance, mul, scale
@@ -35,10 +42,6 @@ EVENT_DELTA = 2
 EVENT_PASS_THROUGH = 3
 
 _ZERO3 = (0.0, 0.0, 0.0)
-
-
-L_KIND, L_WEIGHT, L_COLOR, L_ROUGH, L_IOR, L_SIDES, L_FRESNEL, L_TINT = 0, 1, 4, 7, 8, 9, 10, 11
-L_COLUMNS = 14
 
 
 @inline_kernel
@@ -71,8 +74,8 @@ def _lobe_selection(lobes, j):
 @inline_kernel
 def bsdf_has_lobes(mt, m, front):
     mats, lobes = mt
-    start = mats[m, 0]
-    for j in range(start, start + mats[m, 1]):
+    start = mats[m, M_FIRST]
+    for j in range(start, start + mats[m, M_COUNT]):
         if _present(lobes[j, L_SIDES], front):
             return True
     return False
@@ -82,11 +85,11 @@ def bsdf_has_lobes(mt, m, front):
 def bsdf_eval(mt, m, front, wo, wi):
     """(f, pdf): f = sum_j weight_j f_j, pdf = sum_j P_j pdf_j over the lobes on this side."""
     mats, lobes = mt
-    start = mats[m, 0]
+    start = mats[m, M_FIRST]
     f = _ZERO3
     pdf = 0.0
     total = 0.0
-    for j in range(start, start + mats[m, 1]):
+    for j in range(start, start + mats[m, M_COUNT]):
         if not _present(lobes[j, L_SIDES], front):
             continue
         kind = int(lobes[j, L_KIND])
@@ -106,8 +109,8 @@ def bsdf_eval(mt, m, front, wo, wi):
 def bsdf_sample(mt, m, front, wo, u_sel, u1, u2, u3):
     """(wi, weight, pdf, event); see the module docstring for the events."""
     mats, lobes = mt
-    start = mats[m, 0]
-    end = start + mats[m, 1]
+    start = mats[m, M_FIRST]
+    end = start + mats[m, M_COUNT]
     through = (-wo[0], -wo[1], -wo[2])
     total = 0.0
     n_present = 0

@@ -8,6 +8,7 @@ import numpy as np
 from ..compile import MAX_STACK, CompiledScene
 from ..film import Film
 from ..geometry import Intersector
+from ..media.layout import dda_scratch
 from ..scene import IntegratorSettings
 from . import kernels as K
 from .nee_batch import NeeBatch
@@ -76,6 +77,7 @@ class Tracer:
         self.ps = allocate_paths(self.batch)
         self.sh = allocate_shadows(self.batch)
         self.nb = NeeBatch().arrays() if cs.has_media else None
+        self.md = cs.media.with_scratch(dda_scratch())  # the scene's media tables + our DDA scratch
         self.L = np.zeros((self.batch, 3), np.float64)
         self.pixel_of_pid = np.zeros(self.batch, np.int32)
         self.remaining = np.zeros(2 * self.batch, np.float32)
@@ -104,7 +106,7 @@ class Tracer:
             self.stats["rays"] += live
             count = 0
             if cs.has_media:
-                count = K.shade_media(live, ps, prim, self.lt, cs.media, self.cfg, self.L, sh, self.nb)
+                count = K.shade_media(live, ps, prim, self.lt, self.md, self.cfg, self.L, sh, self.nb)
             count = K.shade_surface(live, ps, prim, bu, bv, cs.geometry, cs.materials, self.lt,
                                     cs.lights.env_light, cs.lights.sun_rows, self.cfg, self.L, sh, count)
             if count:
@@ -117,7 +119,7 @@ class Tracer:
         self.stats["shadow_rays"] += count
         if not self.cs.needs_shadow_walk:
             if self.cs.has_media:
-                K.shadow_media(count, sh, self.cs.media, self.cfg)
+                K.shadow_media(count, sh, self.md, self.cfg)
             occluded = self.isect.occluded(sh.o[:count], sh.d[:count], sh.tmax[:count])
             K.resolve_shadows(count, sh, occluded, self.L)
             return
@@ -127,5 +129,5 @@ class Tracer:
             thit = remaining[:count].copy()
             prim, _, _ = self.isect.intersect(sh.o[:count], sh.d[:count], thit)
             K.walk_shadows(count, sh, prim, thit, remaining, self.cs.geometry, self.cs.materials,
-                           self.cs.media, self.cfg, self.L)
+                           self.md, self.cfg, self.L)
             count = K.compact_shadows(count, sh, remaining)

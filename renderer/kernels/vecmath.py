@@ -3,7 +3,9 @@
 import math
 
 from renderer.kernels import inline_kernel
+from renderer.scene import LUMINANCE
 
+LUM_R, LUM_G, LUM_B = LUMINANCE  # module-level floats: numba folds them as constants
 INV_PI = 1.0 / math.pi
 INV_4PI = 1.0 / (4.0 * math.pi)
 
@@ -66,7 +68,7 @@ def neg(a):
 @inline_kernel
 def luminance(c):
     """Rec. 709 luminance of a linear RGB colour."""
-    return 0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2]
+    return LUM_R * c[0] + LUM_G * c[1] + LUM_B * c[2]
 
 
 @inline_kernel

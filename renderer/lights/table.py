@@ -25,6 +25,8 @@ from typing import NamedTuple
 
 import numpy as np
 
+from renderer.scene import LUMINANCE
+
 TRIANGLE, POINT, SPOT, SUN, ENVIRONMENT = 0, 1, 2, 3, 4
 
 
@@ -45,7 +47,7 @@ class LightTable(NamedTuple):
 
 
 def _luminance(c) -> float:
-    return 0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2]
+    return LUMINANCE[0] * c[0] + LUMINANCE[1] * c[1] + LUMINANCE[2] * c[2]
 
 
 def build_light_table(tris, materials_emission, materials_sides, scene_lights, environment, scene_radius):
@@ -61,7 +63,7 @@ def build_light_table(tris, materials_emission, materials_sides, scene_lights, e
     emission = np.asarray(materials_emission, np.float64).reshape(-1, 3)
     sides = np.asarray(materials_sides, np.int32)
     if emission.shape[0] and v0.shape[0]:
-        mat_lum = emission @ np.array([0.2126, 0.7152, 0.0722])
+        mat_lum = emission @ np.array(LUMINANCE)
         emits = mat_lum[tri_mat] > 0
         e1 = v1 - v0
         e2 = v2 - v0

@@ -1,7 +1,9 @@
 """Participating media as numba kernels.
 
-compile_media() turns Scene.media into a MediaTable; the integrator then calls, per path
-and with the path's medium stack (an int32 row, see stack.py):
+build_media_data() turns Scene.media into MediaData (immutable tables, layout.py); the
+tracer adds its walker scratch (MediaData.with_scratch(dda_scratch())) to make the kernels'
+MediaTable argument, and then calls, per path and with the path's medium stack (an int32
+row, see stack.py):
 
     sample_distance   free flight over a segment: scatter vertex or pass-through, + emission
     transmittance     shadow-ray transmittance over a segment
@@ -10,8 +12,9 @@ and with the path's medium stack (an int32 row, see stack.py):
     stack_push / stack_remove / stack_is_empty / stack_has_grid
 """
 
-from renderer.media.compile import MEDIUM_GRID, MEDIUM_HOMOGENEOUS, MediaTable, compile_media
+from renderer.media.compile import build_media_data, compile_media
 from renderer.media.equiangular import equiangular_pdf, equiangular_sample
+from renderer.media.layout import MEDIUM_GRID, MEDIUM_HOMOGENEOUS, MediaData, MediaTable, dda_scratch
 from renderer.media.medium import sample_distance, transmittance
 from renderer.media.nee import nee_vertex
 from renderer.media.stack import EMPTY, MAX_STACK, stack_has_grid, stack_is_empty, stack_push, stack_remove
@@ -22,8 +25,11 @@ __all__ = [
     "MAX_STACK",
     "MEDIUM_GRID",
     "MEDIUM_HOMOGENEOUS",
+    "MediaData",
     "MediaTable",
+    "build_media_data",
     "compile_media",
+    "dda_scratch",
     "equiangular_pdf",
     "equiangular_sample",
     "nee_vertex",

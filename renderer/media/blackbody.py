@@ -34,6 +34,7 @@ import numpy as np
 
 from renderer.kernels import inline_kernel, kernel
 from renderer.media.cie1931 import CIE_1931_XYZ, CIE_LAMBDA_MIN, CIE_LAMBDA_STEP
+from renderer.scene import LUMINANCE
 
 T_MIN = 800.0
 T_MAX = 12000.0
@@ -59,7 +60,7 @@ def blackbody_rgb_reference(temperature: float) -> np.ndarray:
     planck = 1.0 / (lam**5 * np.expm1(c2 / (lam * t)))
     xyz = CIE_1931_XYZ.T @ planck  # the standard's 5 nm summation
     rgb = XYZ_TO_REC709 @ (xyz / xyz[1])
-    return rgb / (0.2126 * rgb[0] + 0.7152 * rgb[1] + 0.0722 * rgb[2])
+    return rgb / (LUMINANCE[0] * rgb[0] + LUMINANCE[1] * rgb[1] + LUMINANCE[2] * rgb[2])
 
 
 def _table() -> np.ndarray:

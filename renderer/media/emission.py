@@ -14,8 +14,8 @@ length). As in Cycles' Principled Volume, emission is NOT multiplied by density:
 """
 
 from renderer.kernels import inline_kernel, kernel
-from renderer.media.compile import GRID_BLACKBODY, GRID_FLAME
 from renderer.media.grid import grid_lookup, grid_lookup3, to_unit_point
+from renderer.media.layout import GRID_BLACKBODY, GRID_FLAME
 from renderer.media.stack import EMPTY, MAX_STACK
 from renderer.media.table import emission, emits, grid_offset, is_grid
 

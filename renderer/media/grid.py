@@ -8,7 +8,7 @@ homogeneous box); outside the box every grid reads 0. Homogeneous media have den
 """
 
 from renderer.kernels import inline_kernel
-from renderer.media.compile import GRID_DENSITY, P_TO_UNIT
+from renderer.media.layout import GRID_DENSITY, P_TO_UNIT
 from renderer.media.table import grid_dim, grid_offset, is_grid
 
 
@@ -94,7 +94,7 @@ def grid_lookup(mt, m, which, u):
 @inline_kernel
 def grid_lookup3(mt, m, which, u):
     """Trilinear RGB value of three-channel grid `which` (channels interleaved, see
-    compile.GRID_BLACKBODY) of medium m at unit-cube point u ((0, 0, 0) outside)."""
+    layout.GRID_BLACKBODY) of medium m at unit-cube point u ((0, 0, 0) outside)."""
     if not _inside(u):
         return (0.0, 0.0, 0.0)
     b, di, dj, dk, fx, fy, fz = _cell(mt, m, which, u, 3)

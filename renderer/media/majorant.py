@@ -2,7 +2,7 @@
 
 Along a ray o + t d a grid medium's majorant is piecewise constant: 0 before its unit box,
 then one value per majorant cell crossed, then 0 again. A walker holds the state of that
-walk in one float64 row (`DDA_SIZE` slots, so a stack of walkers is a small 2-D array) and
+walk in one float64 row (layout.DDA, so a stack of walkers is a small 2-D array) and
 exposes the current piece: it lasts until row[DDA_END], with density bound row[DDA_MAJ]
 and emission flag row[DDA_EMITS]. dda_advance moves to the next piece.
 
@@ -18,22 +18,24 @@ import numpy as np
 
 from renderer.kernels import inline_kernel, kernel
 from renderer.media.grid import to_unit_point, to_unit_vector
+from renderer.media.layout import (
+    CELL_DENSITY_BOUND,
+    CELL_EMITS,
+    DDA_CELL,
+    DDA_DT,
+    DDA_EMITS,
+    DDA_END,
+    DDA_ENTER,
+    DDA_EXIT,
+    DDA_MAJ,
+    DDA_MEDIUM,
+    DDA_NEXT,
+    DDA_STATE,
+    DDA_STEP,
+)
 from renderer.media.table import maj_dim, maj_offset
 
-# Slots of a walker row.
-DDA_END = 0  # t where the current piece ends
-DDA_MAJ = 1  # density majorant on the current piece
-DDA_EMITS = 2  # 1.0 if the medium may emit on the current piece
-DDA_STATE = 3  # 0 before the box, 1 inside, 2 past it
-DDA_CELL = 4  # 4, 5, 6: current cell
-DDA_NEXT = 7  # 7, 8, 9: t of the next crossing along x, y, z
-DDA_DT = 10  # 10, 11, 12: t between crossings along x, y, z
-DDA_STEP = 13  # 13, 14, 15: +1 / -1 / 0
-DDA_ENTER = 16  # t where the ray enters the box
-DDA_EXIT = 17  # t where the ray leaves the box
-DDA_MEDIUM = 18  # medium id
-DDA_SIZE = 19
-
+# Values of the walker's state field.
 BEFORE, INSIDE, PAST = 0.0, 1.0, 2.0
 
 
@@ -55,7 +57,8 @@ def _load_cell(mt, row):
     k = int(row[DDA_CELL + 2])
     cell = maj_offset(mt, m) + (k * cy + j) * cx + i
     end = min(row[DDA_NEXT], row[DDA_NEXT + 1], row[DDA_NEXT + 2], row[DDA_EXIT])
-    _set_piece(row, end, np.float64(mt.maj_data[cell, 0]), np.float64(mt.maj_data[cell, 1]))
+    _set_piece(row, end, np.float64(mt.maj_data[cell, CELL_DENSITY_BOUND]),
+               np.float64(mt.maj_data[cell, CELL_EMITS]))
 
 
 @inline_kernel
@@ -91,7 +94,7 @@ def _merge_empty(mt, row):
         j = int(row[DDA_CELL + 1]) if a != 1 else int(c)
         k = int(row[DDA_CELL + 2]) if a != 2 else int(c)
         cell = base + (k * cy + j) * cx + i
-        if mt.maj_data[cell, 0] != 0.0 or mt.maj_data[cell, 1] != 0.0:
+        if mt.maj_data[cell, CELL_DENSITY_BOUND] != 0.0 or mt.maj_data[cell, CELL_EMITS] != 0.0:
             break
         row[DDA_CELL + a] = c
         row[DDA_NEXT + a] += row[DDA_DT + a]

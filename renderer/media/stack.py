@@ -1,16 +1,16 @@
 """The medium stack of a path: which media overlap at the path's current position.
 
-A stack is one int32 row of MAX_STACK medium ids, filled from slot 0 with no holes and -1
-in the empty slots. The integrator pushes a medium when a ray enters a medium's mesh and
-removes it on leaving. The same id may be present twice (two overlapping meshes carrying
-the same medium add their coefficients, as two Cycles objects do); removing takes away
-one occurrence.
+A stack is one int32 row of MAX_STACK medium ids (the scene's limit, renderer.scene),
+filled from slot 0 with no holes and -1 in the empty slots. The integrator pushes a medium
+when a ray enters a medium's mesh and removes it on leaving. The same id may be present
+twice (two overlapping meshes carrying the same medium add their coefficients, as two
+Cycles objects do); removing takes away one occurrence.
 """
 
 from renderer.kernels import inline_kernel
 from renderer.media.table import emits, is_grid
+from renderer.scene import MAX_STACK
 
-MAX_STACK = 4
 EMPTY = -1
 
 

@@ -1,4 +1,4 @@
-"""Named, float64 reads of a MediaTable's columns (see compile.py for the layout).
+"""Named, float64 reads of a MediaTable's fields (the layout is in layout.py).
 
 Inlined into the kernels; each returns float64 (numba keeps float32 * float32 in float32,
 so values are widened on the way out) or int.
@@ -7,7 +7,7 @@ so values are widened on the way out) or int.
 import numpy as np
 
 from renderer.kernels import inline_kernel
-from renderer.media.compile import (
+from renderer.media.layout import (
     I_GRID_DIMS,
     I_GRID_OFFSET,
     I_HAS_EMISSION,

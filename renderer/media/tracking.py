@@ -36,7 +36,8 @@ from renderer.kernels.rng import uniform
 from renderer.media.emission import stack_emission
 from renderer.media.grid import medium_density
 from renderer.media.homogeneous import optical_depth
-from renderer.media.majorant import DDA_EMITS, DDA_END, DDA_MAJ, DDA_MEDIUM, dda_advance, dda_init
+from renderer.media.layout import DDA_EMITS, DDA_END, DDA_MAJ, DDA_MEDIUM
+from renderer.media.majorant import dda_advance, dda_init
 from renderer.media.spectral import THIRD, pick_channel
 from renderer.media.stack import EMPTY, MAX_STACK, stack_has_emission
 from renderer.media.table import emission_rate, emits, is_grid, sigma_a, sigma_s, sigma_t

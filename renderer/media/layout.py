@@ -1,0 +1,154 @@
+"""The flat layouts of the media kernels' data, declared by field name (renderer.layout).
+
+The kernels take one argument for all media, a MediaTable: four immutable arrays built by
+renderer.media.compile (a MediaData, kept by the compiled scene) plus the mutable scratch
+of the majorant-grid walk (owned by whoever runs the kernels: the tracer). M = number of
+media; a medium id is its index in the scene's list.
+
+    params    (M, PARAMS.size) float32  per-medium floats, fields of PARAMS:
+        sigma_a, sigma_s   absorption and scattering per world unit, RGB, already times `scale`
+        g                  Henyey-Greenstein asymmetry
+        emission           emission per unit length, RGB (see renderer.media.emission)
+        blackbody          blackbody intensity (already applied in the GRID_BLACKBODY grid)
+        emission_rate      tentative-collision rate (per world unit) guaranteed in emitting
+                           cells of a grid, so that emission where the density is ~0 is
+                           still estimated (see tracking.py)
+        to_unit            world -> grid unit cube affine [A | b] (3x4, row-major), u = A x + b
+                           (identity for homogeneous media)
+    index     (M, INDEX.size) int64     per-medium integers, fields of INDEX:
+        kind               MEDIUM_HOMOGENEOUS or MEDIUM_GRID
+        has_emission       1 if the medium can emit anywhere (else emission costs nothing)
+        grid_offset        [w]: start of grid w (GRID_DENSITY, GRID_FLAME, GRID_BLACKBODY) in
+                           grid_data, -1 when absent
+        grid_dims          [3 w + a]: size of grid w along axis a (x, y, z); voxel (i, j, k) is
+                           grid_data[offset + (k * ny + j) * nx + i]; GRID_BLACKBODY holds
+                           three values per voxel, its channel c at 3 (that index) + c
+        maj_offset         first cell of the medium's majorant grid in maj_data (-1 if none)
+        maj_dims           [a]: majorant cells along unit-cube axis a
+    grid_data (N,)        float32  every grid, x fastest. The temperature grid is stored as
+                                   GRID_BLACKBODY, the RGB blackbody emission of every voxel
+                                   (intensity applied), which the kernels interpolate: Cycles'
+                                   semantics (see renderer.media.blackbody)
+    maj_data  (K, CELL.size) float32  per majorant cell (x fastest): the max density that
+                                   trilinear interpolation can reach inside the cell, and 1.0
+                                   if the cell can emit else 0.0
+    scratch   (MAX_STACK, DDA.size) float64  one walker row per stack entry (majorant.py)
+
+A few wide arrays rather than one per field: every non-inlined call passes each array of
+the tuple, so a 15-array table made a trilinear lookup ~5x slower. A homogeneous medium has
+density 1 everywhere: the medium stack says where it applies.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+from renderer.layout import Layout
+from renderer.scene import MAX_STACK, MEDIUM_TYPES
+
+MEDIUM_HOMOGENEOUS = MEDIUM_TYPES["homogeneous"]
+MEDIUM_GRID = MEDIUM_TYPES["grid"]
+
+# The grids a grid medium may carry, by their index in the grid_offset / grid_dims fields.
+GRID_DENSITY = 0
+GRID_FLAME = 1
+GRID_BLACKBODY = 2  # from the medium's temperature grid: per-voxel blackbody emission, RGB
+GRID_NAMES = ("density", "flame", "temperature")  # the Medium fields behind the indices above
+
+PARAMS = Layout("medium params", [
+    ("sigma_a", 3),
+    ("sigma_s", 3),
+    ("g", 1),
+    ("emission", 3),
+    ("blackbody", 1),
+    ("emission_rate", 1),
+    ("to_unit", 12),
+])
+P_SIGMA_A = PARAMS.offset("sigma_a")
+P_SIGMA_S = PARAMS.offset("sigma_s")
+P_G = PARAMS.offset("g")
+P_EMISSION = PARAMS.offset("emission")
+P_BLACKBODY = PARAMS.offset("blackbody")
+P_EMISSION_RATE = PARAMS.offset("emission_rate")
+P_TO_UNIT = PARAMS.offset("to_unit")
+P_SIZE = PARAMS.size
+
+INDEX = Layout("medium index", [
+    ("kind", 1),
+    ("has_emission", 1),
+    ("grid_offset", len(GRID_NAMES)),
+    ("grid_dims", 3 * len(GRID_NAMES)),
+    ("maj_offset", 1),
+    ("maj_dims", 3),
+])
+I_KIND = INDEX.offset("kind")
+I_HAS_EMISSION = INDEX.offset("has_emission")
+I_GRID_OFFSET = INDEX.offset("grid_offset")
+I_GRID_DIMS = INDEX.offset("grid_dims")
+I_MAJ_OFFSET = INDEX.offset("maj_offset")
+I_MAJ_DIMS = INDEX.offset("maj_dims")
+I_SIZE = INDEX.size
+
+CELL = Layout("majorant cell", [("density_bound", 1), ("emits", 1)])
+CELL_DENSITY_BOUND = CELL.offset("density_bound")
+CELL_EMITS = CELL.offset("emits")
+
+# A walker row of the majorant-grid DDA (renderer.media.majorant).
+DDA = Layout("dda walker", [
+    ("end", 1),  # t where the current piece ends
+    ("maj", 1),  # density majorant on the current piece
+    ("emits", 1),  # 1.0 if the medium may emit on the current piece
+    ("state", 1),  # before the box, inside, past it
+    ("cell", 3),  # current cell
+    ("next", 3),  # t of the next crossing along x, y, z
+    ("dt", 3),  # t between crossings along x, y, z
+    ("step", 3),  # +1 / -1 / 0 along x, y, z
+    ("enter", 1),  # t where the ray enters the box
+    ("exit", 1),  # t where the ray leaves the box
+    ("medium", 1),  # medium id
+])
+DDA_END = DDA.offset("end")
+DDA_MAJ = DDA.offset("maj")
+DDA_EMITS = DDA.offset("emits")
+DDA_STATE = DDA.offset("state")
+DDA_CELL = DDA.offset("cell")
+DDA_NEXT = DDA.offset("next")
+DDA_DT = DDA.offset("dt")
+DDA_STEP = DDA.offset("step")
+DDA_ENTER = DDA.offset("enter")
+DDA_EXIT = DDA.offset("exit")
+DDA_MEDIUM = DDA.offset("medium")
+DDA_SIZE = DDA.size
+
+
+class MediaTable(NamedTuple):
+    """The media kernels' argument: a scene's tables and a walker scratch (see above)."""
+
+    params: np.ndarray
+    index: np.ndarray
+    grid_data: np.ndarray
+    maj_data: np.ndarray
+    scratch: np.ndarray
+
+
+class MediaData(NamedTuple):
+    """A scene's media tables, built once and never written: what a compiled scene keeps."""
+
+    params: np.ndarray
+    index: np.ndarray
+    grid_data: np.ndarray
+    maj_data: np.ndarray
+
+    def with_scratch(self, scratch: np.ndarray) -> MediaTable:
+        """The kernels' argument over these tables, walking the majorant grid in `scratch`."""
+        return MediaTable(self.params, self.index, self.grid_data, self.maj_data, scratch)
+
+
+def dda_scratch() -> np.ndarray:
+    """Working rows for the majorant-grid walk: one per medium a stack can hold. Kernels
+    run one path at a time per process, so one scratch serves a whole tracer; it is
+    allocated outside the kernels because they are compiled without reference counting
+    and so cannot allocate."""
+    return np.zeros((MAX_STACK, DDA_SIZE), np.float64)
