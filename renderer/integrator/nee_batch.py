@@ -11,9 +11,9 @@ segment here (`record`: the ray, the medium's constants, the light's data, the r
 and the path's dimension counter), and `run` computes the batch in three loops without
 branches, which LLVM vectorises (8 paths per AVX-512 instruction): `vertices`,
 `connections` and `advance`. The random numbers are computed inside the loops from the key
-and the dimension layout in dims.py, so the scalar path in kernels.py, which does the same
-maths, draws the same ones; tests/test_nee_batch.py holds the two to 1e-11. kernels.
-_flush_nee_batch then writes the shadow rays and the paths' new states.
+and the dimension layout in dims.py, so the scalar path in media_stage.py, which does the
+same maths, draws the same ones; tests/test_nee_batch.py holds the two to 1e-11.
+media_stage._flush_nee_batch then writes the shadow rays and the paths' new states.
 
 Which segments qualify (`qualifies`; shade_media checks the rest): a homogeneous stack with
 one entry (so the phase function is one Henyey-Greenstein lobe), a path that still takes a
@@ -41,7 +41,17 @@ from renderer.kernels.rng import uniform
 from renderer.kernels.vecmath import cross, dot, sub
 from renderer.lights.sample import looks_near
 from renderer.lights.spherical_triangle import MIN_SOLID_ANGLE, sample_spherical_triangle, unit_or_zero
-from renderer.lights.table import TRIANGLE
+from renderer.lights.table import (
+    LT_COLOR,
+    LT_COLOR_B,
+    LT_KIND,
+    LT_PARAM,
+    LT_PMF,
+    LT_POS,
+    LT_VEC_A,
+    LT_VEC_B,
+    TRIANGLE,
+)
 from renderer.media.equiangular import D_FLOOR, D_MIN, MIN_THETA
 from renderer.media.homogeneous import optical_depth, truncated_pdf
 from renderer.media.spectral import THIRD, pick_channel
@@ -112,7 +122,7 @@ def path_update(r, j):
 
 @inline_kernel
 def qualifies(lt, light, stack):
-    return lt[0][light] == TRIANGLE and stack[1] == EMPTY
+    return lt[LT_KIND][light] == TRIANGLE and stack[1] == EMPTY
 
 
 @inline_kernel
@@ -136,7 +146,8 @@ def record(nb, j, path, key, dim, lt, light, o, d, tmax, beta, sigma_s, sigma_t,
     q_path[j] = path
     # The light's data too: the SIMD loop then reads only rows at j (a gather by light index
     # would keep LLVM from bounding the loop's memory accesses, and so from vectorising it).
-    pos, vec_a, vec_b, color, color_b, param, pmf = lt[1], lt[2], lt[3], lt[4], lt[5], lt[6], lt[7]
+    pos, vec_a, vec_b, param, pmf = lt[LT_POS], lt[LT_VEC_A], lt[LT_VEC_B], lt[LT_PARAM], lt[LT_PMF]
+    color, color_b = lt[LT_COLOR], lt[LT_COLOR_B]
     for k in range(3):
         q[(Q_P0 + k) * CHUNK + j] = pos[light, k]
         q[(Q_EA + k) * CHUNK + j] = vec_a[light, k]
@@ -372,7 +383,7 @@ def _free_flight(q, j, u_channel, u_distance):
 @kernel
 def advance(n, nb):
     """Stage 3: the path's own free flight on its segment, and where it scatters the
-    Henyey-Greenstein direction and Russian roulette (kernels.shade_media's scalar path)."""
+    Henyey-Greenstein direction and Russian roulette (media_stage.shade_media's scalar path)."""
     q, q_key, q_dim, _, r = nb
     for j in range(n):
         t, hit, w = _free_flight(q, j, _u(q_key, q_dim, j, SEG_FREE_FLIGHT),

@@ -1,6 +1,6 @@
 """Light sampling kernels over the LightTable (see renderer.lights.table).
 
-`lt` is the tuple (kind, pos, vec_a, vec_b, color, color_b, param, pmf, cdf). Light
+`lt` is the table's arrays as a tuple (table.kernel_arrays), read by the LT_* names. Light
 sampling is split in two so that a medium can place its next-event vertex toward the
 chosen point (equiangular sampling) before the connection is made:
   pick_light     -> a row, by power
@@ -17,9 +17,42 @@ from ..kernels import fastmath as fm
 from ..kernels import inline_kernel
 from ..kernels.vecmath import INV_4PI, add, cross, dot, length, normalize, onb, scale, sub, to_world
 from .spherical_triangle import sample_spherical_triangle, spherical_triangle, use_solid_angle
-from .table import POINT, SPOT, SUN, TRIANGLE
+from .table import (
+    LT_CDF,
+    LT_COLOR,
+    LT_COLOR_B,
+    LT_KIND,
+    LT_PARAM,
+    LT_PMF,
+    LT_POS,
+    LT_VEC_A,
+    LT_VEC_B,
+    POINT,
+    SPOT,
+    SUN,
+    TRIANGLE,
+)
 
 SOLID_ANGLE_GATE = 0.05  # sr; see looks_near
+
+
+@inline_kernel
+def light_cdf(lt):
+    """The cdf pick_light searches: L + 1 entries, so more than one when there are lights."""
+    return lt[LT_CDF]
+
+
+@inline_kernel
+def light_pmf(lt, light):
+    """Probability that pick_light chooses `light`."""
+    return lt[LT_PMF][light]
+
+
+@inline_kernel
+def triangle_emission(lt, light, front):
+    """Radiance triangle light `light` emits from its front or its back side."""
+    c = lt[LT_COLOR] if front else lt[LT_COLOR_B]
+    return (float(c[light, 0]), float(c[light, 1]), float(c[light, 2]))
 
 
 @inline_kernel
@@ -40,7 +73,7 @@ def pick_light(cdf, u):
 
 @inline_kernel
 def light_has_point(lt, light):
-    k = lt[0][light]
+    k = lt[LT_KIND][light]
     return k == TRIANGLE or k == POINT or k == SPOT
 
 
@@ -48,7 +81,7 @@ def light_has_point(lt, light):
 def light_point(lt, light, u1, u2):
     """A point on the light, uniform by area for triangles; the position of point and spot
     lights; the origin for sun and environment (which have no point)."""
-    kind, pos, vec_a, vec_b = lt[0], lt[1], lt[2], lt[3]
+    kind, pos, vec_a, vec_b = lt[LT_KIND], lt[LT_POS], lt[LT_VEC_A], lt[LT_VEC_B]
     p = (float(pos[light, 0]), float(pos[light, 1]), float(pos[light, 2]))
     if kind[light] != TRIANGLE:
         return p
@@ -81,7 +114,7 @@ def spot_attenuation(axis, cos_outer, blend_width, wi_from_light):
 
 @inline_kernel
 def _triangle(lt, light):
-    pos, vec_a, vec_b = lt[1], lt[2], lt[3]
+    pos, vec_a, vec_b = lt[LT_POS], lt[LT_VEC_A], lt[LT_VEC_B]
     p0 = (float(pos[light, 0]), float(pos[light, 1]), float(pos[light, 2]))
     e1 = (float(vec_a[light, 0]), float(vec_a[light, 1]), float(vec_a[light, 2]))
     e2 = (float(vec_b[light, 0]), float(vec_b[light, 1]), float(vec_b[light, 2]))
@@ -111,7 +144,7 @@ def _connect_direction(lt, light, x, p0, p1, p2, wi, omega, c):
     if not (dist > 0.0 and math.isfinite(dist)):
         return wi, 0.0, (0.0, 0.0, 0.0), 0.0, False
     if cos_l < 0.0:
-        color_b = lt[5]
+        color_b = lt[LT_COLOR_B]
         c = (float(color_b[light, 0]), float(color_b[light, 1]), float(color_b[light, 2]))
     return wi, dist, c, 1.0 / omega, False
 
@@ -124,7 +157,8 @@ def connect_light(lt, light, lp, x, u1, u2):
     radiance, or intensity / dist^2 for delta lights), pdf (solid angle, without the light's
     selection probability; 1 for delta lights), is_delta).
     """
-    kind, vec_a, vec_b, color, color_b, param = lt[0], lt[2], lt[3], lt[4], lt[5], lt[6]
+    kind, vec_a, vec_b, param = lt[LT_KIND], lt[LT_VEC_A], lt[LT_VEC_B], lt[LT_PARAM]
+    color, color_b = lt[LT_COLOR], lt[LT_COLOR_B]
     k = kind[light]
     c = (float(color[light, 0]), float(color[light, 1]), float(color[light, 2]))
     if k == TRIANGLE:
@@ -182,7 +216,7 @@ def connect_light(lt, light, lp, x, u1, u2):
 def escaped_radiance(lt, env_light, sun_rows, d):
     """Radiance arriving along direction d from infinity (environment and sun discs), and
     the light-sampling pdf of that direction including selection probabilities (for MIS)."""
-    pmf, color, vec_a, param = lt[7], lt[4], lt[2], lt[6]
+    pmf, color, vec_a, param = lt[LT_PMF], lt[LT_COLOR], lt[LT_VEC_A], lt[LT_PARAM]
     r, g, b, pdf = 0.0, 0.0, 0.0, 0.0
     if env_light >= 0:
         r += color[env_light, 0]
@@ -208,11 +242,11 @@ def triangle_light_pdf(lt, light, x, p, cos_l):
     if looks_near(x, p0, p1, p2):
         omega = spherical_triangle(x, p0, p1, p2)[0]
         if use_solid_angle(omega):
-            return lt[7][light] / omega
-    area = lt[6][light, 0]
+            return lt[LT_PMF][light] / omega
+    area = lt[LT_PARAM][light, 0]
     if area <= 0.0 or abs(cos_l) < 1e-8:
         return 0.0
     to = sub(p, x)
-    return lt[7][light] * dot(to, to) / (area * abs(cos_l))
+    return lt[LT_PMF][light] * dot(to, to) / (area * abs(cos_l))
 
 
