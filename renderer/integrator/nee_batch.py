@@ -21,14 +21,14 @@ next-event vertex (depth <= max_bounces, light sampling on) and a triangle light
 it. Everything else (grids, overlapping media, point, spot and distant lights, the last
 segment of a path) keeps the scalar path.
 
-Storage (NeeBatch), for CHUNK requests: q, Q_ROWS rows of CHUNK float64 in one flat array,
-row k of request j at q[k * CHUNK + j], so that each quantity is contiguous (what SIMD loads
-want) and every pair of rows lies a compile-time constant apart: LLVM then proves that the
-loops' loads and stores never overlap without run-time checks (with one 2-D array per
-quantity set it needed hundreds of them and gave up). r: R_ROWS rows the same way, the
-results (see shadow_ray and path_update). q_key (CHUNK,) uint64 and q_dim (CHUNK,) int64:
-the path's random key and its dimension counter at the segment's start; q_path (CHUNK,)
-int32: the path row.
+Storage (NeeBatch), for CHUNK requests: q, Q_ROWS rows (the QUERY layout) of CHUNK
+float64 in one flat array, row k of request j at q[k * CHUNK + j], so that each quantity is
+contiguous (what SIMD loads want) and every pair of rows lies a compile-time constant
+apart: LLVM then proves that the loops' loads and stores never overlap without run-time
+checks (with one 2-D array per quantity set it needed hundreds of them and gave up). r:
+R_ROWS rows (RESULT) the same way, the results (see shadow_ray and path_update). q_key
+(CHUNK,) uint64 and q_dim (CHUNK,) int64: the path's random key and its dimension counter
+at the segment's start; q_path (CHUNK,) int32: the path row.
 """
 
 import math
@@ -39,6 +39,7 @@ from renderer.kernels import inline_kernel, kernel
 from renderer.kernels import simdmath as sm
 from renderer.kernels.rng import uniform
 from renderer.kernels.vecmath import cross, dot, sub
+from renderer.layout import Layout
 from renderer.lights.sample import looks_near
 from renderer.lights.spherical_triangle import MIN_SOLID_ANGLE, sample_spherical_triangle, unit_or_zero
 from renderer.lights.table import (
@@ -60,13 +61,52 @@ from renderer.phase.hg import hg_direction, hg_eval
 
 from .dims import SEG_CONNECT, SEG_FREE_FLIGHT, SEG_LIGHT, SEG_PHASE, SEG_RR, SEG_VERTEX
 
-Q_O, Q_D, Q_TMAX, Q_BETA, Q_ST, Q_SS, Q_TR, Q_MISS, Q_P = 0, 3, 6, 7, 10, 13, 16, 19, 22
-Q_G, Q_EQUIANGULAR, Q_RR = 25, 26, 27
-Q_P0, Q_EA, Q_EB, Q_AREA, Q_LE_FRONT, Q_LE_BACK, Q_PMF = 28, 31, 34, 37, 38, 41, 44
-Q_ROWS = 45
-R_X, R_WI, R_LENGTH, R_C, R_LP = 0, 3, 6, 7, 10
-R_Y, R_DIR, R_BETA, R_PDF, R_STATE, R_DIM = 13, 16, 19, 22, 23, 24
-R_ROWS = 25
+# A request's rows: the segment, the medium's constants, the choices made for it and the
+# triangle light's data (copied in, see record). Stage 0 (segments) fills tr, miss and p.
+QUERY = Layout("nee_batch request", [
+    ("o", 3), ("d", 3), ("tmax", 1), ("beta", 3),
+    ("sigma_t", 3), ("sigma_s", 3), ("tr", 3), ("miss", 3), ("p", 3),  # tr, miss: T(tmax), 1 - T(tmax)
+    ("g", 1), ("equiangular", 1), ("roulette", 1),
+    ("p0", 3), ("edge_a", 3), ("edge_b", 3), ("area", 1), ("le_front", 3), ("le_back", 3), ("pmf", 1),
+])
+Q_O = QUERY.offset("o")
+Q_D = QUERY.offset("d")
+Q_TMAX = QUERY.offset("tmax")
+Q_BETA = QUERY.offset("beta")
+Q_ST = QUERY.offset("sigma_t")
+Q_SS = QUERY.offset("sigma_s")
+Q_TR = QUERY.offset("tr")
+Q_MISS = QUERY.offset("miss")
+Q_P = QUERY.offset("p")
+Q_G = QUERY.offset("g")
+Q_EQUIANGULAR = QUERY.offset("equiangular")
+Q_RR = QUERY.offset("roulette")
+Q_P0 = QUERY.offset("p0")
+Q_EA = QUERY.offset("edge_a")
+Q_EB = QUERY.offset("edge_b")
+Q_AREA = QUERY.offset("area")
+Q_LE_FRONT = QUERY.offset("le_front")
+Q_LE_BACK = QUERY.offset("le_back")
+Q_PMF = QUERY.offset("pmf")
+Q_ROWS = QUERY.size
+# A request's results: its shadow ray (x, wi, length, contribution c; the light point lp on
+# the way), then its path's fate (see shadow_ray and path_update).
+RESULT = Layout("nee_batch result", [
+    ("x", 3), ("wi", 3), ("length", 1), ("c", 3), ("lp", 3),
+    ("y", 3), ("dir", 3), ("beta", 3), ("pdf", 1), ("state", 1), ("dim", 1),
+])
+R_X = RESULT.offset("x")
+R_WI = RESULT.offset("wi")
+R_LENGTH = RESULT.offset("length")
+R_C = RESULT.offset("c")
+R_LP = RESULT.offset("lp")
+R_Y = RESULT.offset("y")
+R_DIR = RESULT.offset("dir")
+R_BETA = RESULT.offset("beta")
+R_PDF = RESULT.offset("pdf")
+R_STATE = RESULT.offset("state")
+R_DIM = RESULT.offset("dim")
+R_ROWS = RESULT.size
 # R_STATE: what became of the path on its segment.
 DEAD, PASSED, SCATTERED = 0.0, 1.0, 2.0
 # Requests per SIMD pass: 1032 requests' rows (Q_ROWS + R_ROWS of them) take 0.6 MB, which
