@@ -9,14 +9,26 @@ chosen point (equiangular sampling) before the connection is made:
                     triangles are sampled by the solid angle they subtend there (see
                     spherical_triangle.py), the light point serving only the medium's
                     equiangular vertex (and the area fallback for tiny solid angles)
+
+The triangle's point and connection also serve the SIMD batch of homogeneous medium
+segments (renderer.integrator.nee_batch), which needs them without branches:
+triangle_point is, and connect_triangle_simd is connect_light's triangle case with both
+techniques computed and one kept by a select.
 """
 
 import math
 
 from ..kernels import fastmath as fm
 from ..kernels import inline_kernel
+from ..kernels import simdmath as sm
 from ..kernels.vecmath import INV_4PI, add, cross, dot, length, normalize, onb, scale, sub, to_world
-from .spherical_triangle import sample_spherical_triangle, spherical_triangle, use_solid_angle
+from .spherical_triangle import (
+    MIN_SOLID_ANGLE,
+    sample_spherical_triangle,
+    spherical_triangle,
+    unit_or_zero,
+    use_solid_angle,
+)
 from .table import (
     LT_CDF,
     LT_COLOR,
@@ -85,12 +97,20 @@ def light_point(lt, light, u1, u2):
     p = (float(pos[light, 0]), float(pos[light, 1]), float(pos[light, 2]))
     if kind[light] != TRIANGLE:
         return p
+    return triangle_point(p, (vec_a[light, 0], vec_a[light, 1], vec_a[light, 2]),
+                          (vec_b[light, 0], vec_b[light, 1], vec_b[light, 2]), u1, u2)
+
+
+@inline_kernel
+def triangle_point(p0, edge_a, edge_b, u1, u2):
+    """A point uniform by area on the triangle p0, p0 + edge_a, p0 + edge_b. Branch-free:
+    the SIMD batch (renderer.integrator.nee_batch) calls it too."""
     su = math.sqrt(u1)
     b1 = 1.0 - su
     b2 = u2 * su
-    return (p[0] + b1 * vec_a[light, 0] + b2 * vec_b[light, 0],
-            p[1] + b1 * vec_a[light, 1] + b2 * vec_b[light, 1],
-            p[2] + b1 * vec_a[light, 2] + b2 * vec_b[light, 2])
+    return (p0[0] + b1 * edge_a[0] + b2 * edge_b[0],
+            p0[1] + b1 * edge_a[1] + b2 * edge_b[1],
+            p0[2] + b1 * edge_a[2] + b2 * edge_b[2])
 
 
 @inline_kernel
@@ -210,6 +230,40 @@ def connect_light(lt, light, lp, x, u1, u2):
     phi = 2.0 * math.pi * u2
     sin_phi, cos_phi = fm.sincos(phi)
     return (r * cos_phi, r * sin_phi, z), 1e30, c, INV_4PI, False
+
+
+@inline_kernel
+def connect_triangle_simd(p0, p1, p2, lp, area, x, u1, u2):
+    """(wi, dist, back_side, pdf) of connect_light for the triangle light p0 p1 p2 of the
+    given area (lp: its area-sampled point), without branches, so that a loop calling it
+    vectorises (the SIMD batch, renderer.integrator.nee_batch); pdf 0 when there is no
+    connection. Both techniques are computed and looks_near's rule keeps one."""
+    near = looks_near(x, p0, p1, p2)
+    # Solid angle and Arvo's direction.
+    a = unit_or_zero(sub(p0, x))
+    b = unit_or_zero(sub(p1, x))
+    c = unit_or_zero(sub(p2, x))
+    omega = 2.0 * sm.atan2(abs(dot(a, cross(b, c))), 1.0 + dot(a, b) + dot(b, c) + dot(c, a))
+    solid = near and omega >= MIN_SOLID_ANGLE and omega < math.inf
+    w_sa = sample_spherical_triangle(a, b, c, omega, u1, u2)
+    n = unit_or_zero(cross(sub(p1, p0), sub(p2, p0)))
+    cos_sa = -dot(w_sa, n)
+    dist_sa = ((x[0] - p0[0]) * n[0] + (x[1] - p0[1]) * n[1] + (x[2] - p0[2]) * n[2]) / (
+        cos_sa if cos_sa != 0.0 else 1.0)
+    ok_sa = cos_sa != 0.0 and dist_sa > 0.0 and dist_sa < math.inf
+    # Area sampling toward the light point.
+    tx, ty, tz = lp[0] - x[0], lp[1] - x[1], lp[2] - x[2]
+    dist_a = math.sqrt(tx * tx + ty * ty + tz * tz)
+    inv = 1.0 / dist_a if dist_a > 0.0 else 0.0
+    w_a = (tx * inv, ty * inv, tz * inv)
+    cos_a = -dot(w_a, n)
+    ok_a = dist_a > 0.0 and abs(cos_a) >= 1e-8 and area > 0.0
+    pdf_a = dist_a * dist_a / (area * abs(cos_a)) if ok_a else 0.0
+    wi = w_sa if solid else w_a
+    dist = dist_sa if solid else dist_a
+    cos_l = cos_sa if solid else cos_a
+    pdf = (1.0 / omega if ok_sa else 0.0) if solid else pdf_a
+    return wi, dist, cos_l < 0.0, pdf
 
 
 @inline_kernel
