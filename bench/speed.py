@@ -69,27 +69,31 @@ def one_core(scene, spp: int) -> dict:
 
 
 def _surface_only_kernels():
-    """The integrator's kernels with every trace of media deleted before compiling: the
-    medium kernels' bodies are dropped and the stack updates of interface crossings become
-    no-ops. Built from the same source, uncached: the baseline of media_overhead."""
+    """The integrator's stage kernels with the surface stage recompiled from its own source
+    with every trace of media deleted: the stack updates of interface crossings become
+    no-ops (the medium stage never runs on a scene without media). Uncached: the baseline
+    of media_overhead."""
     import importlib.util
     import inspect
+    import types
 
     from numba import njit
 
-    from renderer.integrator import kernels
+    from renderer.integrator import stages, surface_stage
     from renderer.kernels import JIT_OPTIONS
 
     uncached = {**JIT_OPTIONS, "cache": False}  # a module built from a string has no cache file
-    src = inspect.getsource(kernels).replace("@inline_kernel\n", "@_uncached_inline\n")
+    src = inspect.getsource(surface_stage).replace("@inline_kernel\n", "@_uncached_inline\n")
     src = src.replace("@kernel\n", "@_uncached\n")
     src = src.replace("    med = geo.medium[p]\n    if med >= 0:", "    med = -1\n    if med >= 0:")
     spec = importlib.util.spec_from_loader("renderer.integrator._surface_only", loader=None)
     module = importlib.util.module_from_spec(spec)
     module.__package__ = "renderer.integrator"
     module.__dict__.update(_uncached=njit(**uncached), _uncached_inline=njit(**uncached, inline="always"))
-    exec(compile(src, "<surface-only kernels>", "exec"), module.__dict__)
-    return module
+    exec(compile(src, "<surface-only surface stage>", "exec"), module.__dict__)
+    kernels = {name: getattr(stages, name) for name in stages.__all__}
+    kernels["shade_surface"] = module.shade_surface
+    return types.SimpleNamespace(**kernels)
 
 
 def media_overhead(scene, spp: int, repeats: int = 3) -> float:

@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .kernels import kernel
+
 # relMSE = mean((x - ref)^2 / (ref^2 + REL_EPS)); the offset keeps black pixels from dominating.
 REL_EPS = 1e-2
 
@@ -67,6 +69,24 @@ class Film:
         m = self.mean().reshape(shape)
         level = np.minimum(m, box_mean(m, 2))
         return float(np.mean(self.variance_of_mean().reshape(shape) / (level * level + REL_EPS)))
+
+
+@kernel
+def splat(n, L, pixel_of_pid, film_sum, film_sq, film_n, film_nonfinite):
+    """Add paths 0..n-1 of a batch (radiance L[pid], pixel pixel_of_pid[pid]) to a Film's
+    arrays: per-pixel sum, sum of squares, count. A non-finite path value (a bug, never
+    expected) is counted and added as 0, so one bad path cannot ruin an image but cannot
+    pass unnoticed either."""
+    for i in range(n):
+        px = pixel_of_pid[i]
+        for c in range(3):
+            v = L[i, c]
+            if not np.isfinite(v):
+                film_nonfinite[0] += 1
+                v = 0.0
+            film_sum[px, c] += v
+            film_sq[px, c] += v * v
+        film_n[px] += 1
 
 
 def box_mean(image: np.ndarray, radius: int) -> np.ndarray:

@@ -27,7 +27,7 @@ from examples.media_scenes import (
 from examples.scenes import box
 from renderer.errors import SceneError
 from renderer.film import Film
-from renderer.integrator import kernels
+from renderer.integrator import stages as kernels
 from renderer.render import render_progressive
 from renderer.scene import Environment, IntegratorSettings, Medium, Mesh, Scene
 from renderer.scene import Film as FilmSettings

@@ -15,7 +15,7 @@ from numba import njit
 from examples.scenes import cornell_box, cornell_fog, fog
 from renderer.compile import compile_scene
 from renderer.film import Film
-from renderer.integrator import kernels as K
+from renderer.integrator import config as K
 from renderer.integrator import nee_batch as NB
 from renderer.integrator.dims import SEG_FREE_FLIGHT, SEG_LIGHT, SEG_VERTEX
 from renderer.integrator.wavefront import Tracer
@@ -46,7 +46,7 @@ def _requests(nb, lt, md, stack, o, d, tmax, beta, light, g, use_eq, roulette, s
 
 @njit(cache=True)
 def _scalar(lt, md, stack, o, d, tmax, beta, light, g, use_eq, seed, mis, out):
-    """The scalar path's vertex, connection and contribution (kernels._medium_nee)."""
+    """The scalar path's vertex, connection and contribution (media_stage._medium_nee)."""
     for j in range(o.shape[0]):
         key = path_key(seed, j, 0)
         oo = (o[j, 0], o[j, 1], o[j, 2])

@@ -5,6 +5,7 @@ or not it uses all of it, so that the scalar kernels and the SIMD batches (nee_b
 do the same work in a different order, draw the same random numbers.
 """
 
+CAMERA_DIMS = 2  # the sample's position in its pixel; the path's own events start after them
 SHADOW_DIMS = 64  # a shadow ray's own tracking through media
 MEDIUM_NEE_DIMS = 2 + SHADOW_DIMS  # a medium vertex's light connection and its shadow ray
 

@@ -1,7 +1,8 @@
 """The medium operations the integrator calls, in one place (renderer.media implements them).
 
-A scene without media never reaches these: the shading kernel tests cfg[CFG_HAS_MEDIA]
-before touching the path's medium stack.
+A scene without media never reaches the costly ones: the driver runs the medium stage
+(media_stage.py) and shadow_media only when the scene has media, and the surface stage
+touches a path's medium stack only where it crosses a mesh that bounds a medium.
 """
 
 from ..media.homogeneous import segment, stack_sigma

@@ -8,12 +8,15 @@ flight, Henyey-Greenstein direction and Russian roulette. Inside the per-path lo
 runs at the latency of the chain, with a mispredicted branch wherever a random number
 decides (scatter or pass, which channel, which technique). So shade_media only records each
 segment here (`record`: the ray, the medium's constants, the light's data, the random key
-and the path's dimension counter), and `run` computes the batch in three loops without
-branches, which LLVM vectorises (8 paths per AVX-512 instruction): `vertices`,
-`connections` and `advance`. The random numbers are computed inside the loops from the key
-and the dimension layout in dims.py, so the scalar path in kernels.py, which does the same
-maths, draws the same ones; tests/test_nee_batch.py holds the two to 1e-11. kernels.
-_flush_nee_batch then writes the shadow rays and the paths' new states.
+and the path's dimension counter), and `run` computes the batch in four loops without
+branches, which LLVM vectorises (8 paths per AVX-512 instruction): `segments`, `vertices`,
+`connections` and `advance`. The loops only move rows: each quantity's maths is the
+branch-free form of its concept, kept beside the scalar form in media/homogeneous.py,
+media/equiangular.py, media/nee.py, media/spectral.py and lights/sample.py. The random
+numbers are computed inside the loops from the key and the dimension layout in dims.py, so
+the scalar path in media_stage.py, which does the same maths, draws the same ones;
+tests/test_nee_batch.py holds the two to 1e-11. media_stage._flush_nee_batch then writes
+the shadow rays and the paths' new states.
 
 Which segments qualify (`qualifies`; shade_media checks the rest): a homogeneous stack with
 one entry (so the phase function is one Henyey-Greenstein lobe), a path that still takes a
@@ -21,14 +24,14 @@ next-event vertex (depth <= max_bounces, light sampling on) and a triangle light
 it. Everything else (grids, overlapping media, point, spot and distant lights, the last
 segment of a path) keeps the scalar path.
 
-Storage (NeeBatch), for CHUNK requests: q, Q_ROWS rows of CHUNK float64 in one flat array,
-row k of request j at q[k * CHUNK + j], so that each quantity is contiguous (what SIMD loads
-want) and every pair of rows lies a compile-time constant apart: LLVM then proves that the
-loops' loads and stores never overlap without run-time checks (with one 2-D array per
-quantity set it needed hundreds of them and gave up). r: R_ROWS rows the same way, the
-results (see shadow_ray and path_update). q_key (CHUNK,) uint64 and q_dim (CHUNK,) int64:
-the path's random key and its dimension counter at the segment's start; q_path (CHUNK,)
-int32: the path row.
+Storage (NeeBatch), for CHUNK requests: q, Q_ROWS rows (the QUERY layout) of CHUNK
+float64 in one flat array, row k of request j at q[k * CHUNK + j], so that each quantity is
+contiguous (what SIMD loads want) and every pair of rows lies a compile-time constant
+apart: LLVM then proves that the loops' loads and stores never overlap without run-time
+checks (with one 2-D array per quantity set it needed hundreds of them and gave up). r:
+R_ROWS rows (RESULT) the same way, the results (see shadow_ray and path_update). q_key
+(CHUNK,) uint64 and q_dim (CHUNK,) int64: the path's random key and its dimension counter
+at the segment's start; q_path (CHUNK,) int32: the path row.
 """
 
 import math
@@ -38,25 +41,74 @@ import numpy as np
 from renderer.kernels import inline_kernel, kernel
 from renderer.kernels import simdmath as sm
 from renderer.kernels.rng import uniform
-from renderer.kernels.vecmath import cross, dot, sub
-from renderer.lights.sample import looks_near
-from renderer.lights.spherical_triangle import MIN_SOLID_ANGLE, sample_spherical_triangle, unit_or_zero
-from renderer.lights.table import TRIANGLE
-from renderer.media.equiangular import D_FLOOR, D_MIN, MIN_THETA
-from renderer.media.homogeneous import optical_depth, truncated_pdf
-from renderer.media.spectral import THIRD, pick_channel
+from renderer.kernels.vecmath import dot
+from renderer.layout import Layout
+from renderer.lights.sample import connect_triangle_simd, triangle_point
+from renderer.lights.table import (
+    LT_COLOR,
+    LT_COLOR_B,
+    LT_KIND,
+    LT_PARAM,
+    LT_PMF,
+    LT_POS,
+    LT_VEC_A,
+    LT_VEC_B,
+    TRIANGLE,
+)
+from renderer.media.homogeneous import beer_simd, free_flight_segment_simd, segment_simd
+from renderer.media.nee import nee_vertex_simd
+from renderer.media.spectral import channel_probabilities_simd
 from renderer.media.stack import EMPTY
 from renderer.phase.hg import hg_direction, hg_eval
 
 from .dims import SEG_CONNECT, SEG_FREE_FLIGHT, SEG_LIGHT, SEG_PHASE, SEG_RR, SEG_VERTEX
 
-Q_O, Q_D, Q_TMAX, Q_BETA, Q_ST, Q_SS, Q_TR, Q_MISS, Q_P = 0, 3, 6, 7, 10, 13, 16, 19, 22
-Q_G, Q_EQUIANGULAR, Q_RR = 25, 26, 27
-Q_P0, Q_EA, Q_EB, Q_AREA, Q_LE_FRONT, Q_LE_BACK, Q_PMF = 28, 31, 34, 37, 38, 41, 44
-Q_ROWS = 45
-R_X, R_WI, R_LENGTH, R_C, R_LP = 0, 3, 6, 7, 10
-R_Y, R_DIR, R_BETA, R_PDF, R_STATE, R_DIM = 13, 16, 19, 22, 23, 24
-R_ROWS = 25
+# A request's rows: the segment, the medium's constants, the choices made for it and the
+# triangle light's data (copied in, see record). Stage 0 (segments) fills tr, miss and p.
+QUERY = Layout("nee_batch request", [
+    ("o", 3), ("d", 3), ("tmax", 1), ("beta", 3),
+    ("sigma_t", 3), ("sigma_s", 3), ("tr", 3), ("miss", 3), ("p", 3),  # tr, miss: T(tmax), 1 - T(tmax)
+    ("g", 1), ("equiangular", 1), ("roulette", 1),
+    ("p0", 3), ("edge_a", 3), ("edge_b", 3), ("area", 1), ("le_front", 3), ("le_back", 3), ("pmf", 1),
+])
+Q_O = QUERY.offset("o")
+Q_D = QUERY.offset("d")
+Q_TMAX = QUERY.offset("tmax")
+Q_BETA = QUERY.offset("beta")
+Q_ST = QUERY.offset("sigma_t")
+Q_SS = QUERY.offset("sigma_s")
+Q_TR = QUERY.offset("tr")
+Q_MISS = QUERY.offset("miss")
+Q_P = QUERY.offset("p")
+Q_G = QUERY.offset("g")
+Q_EQUIANGULAR = QUERY.offset("equiangular")
+Q_RR = QUERY.offset("roulette")
+Q_P0 = QUERY.offset("p0")
+Q_EA = QUERY.offset("edge_a")
+Q_EB = QUERY.offset("edge_b")
+Q_AREA = QUERY.offset("area")
+Q_LE_FRONT = QUERY.offset("le_front")
+Q_LE_BACK = QUERY.offset("le_back")
+Q_PMF = QUERY.offset("pmf")
+Q_ROWS = QUERY.size
+# A request's results: its shadow ray (x, wi, length, contribution c; the light point lp on
+# the way), then its path's fate (see shadow_ray and path_update).
+RESULT = Layout("nee_batch result", [
+    ("x", 3), ("wi", 3), ("length", 1), ("c", 3), ("lp", 3),
+    ("y", 3), ("dir", 3), ("beta", 3), ("pdf", 1), ("state", 1), ("dim", 1),
+])
+R_X = RESULT.offset("x")
+R_WI = RESULT.offset("wi")
+R_LENGTH = RESULT.offset("length")
+R_C = RESULT.offset("c")
+R_LP = RESULT.offset("lp")
+R_Y = RESULT.offset("y")
+R_DIR = RESULT.offset("dir")
+R_BETA = RESULT.offset("beta")
+R_PDF = RESULT.offset("pdf")
+R_STATE = RESULT.offset("state")
+R_DIM = RESULT.offset("dim")
+R_ROWS = RESULT.size
 # R_STATE: what became of the path on its segment.
 DEAD, PASSED, SCATTERED = 0.0, 1.0, 2.0
 # Requests per SIMD pass: 1032 requests' rows (Q_ROWS + R_ROWS of them) take 0.6 MB, which
@@ -112,7 +164,7 @@ def path_update(r, j):
 
 @inline_kernel
 def qualifies(lt, light, stack):
-    return lt[0][light] == TRIANGLE and stack[1] == EMPTY
+    return lt[LT_KIND][light] == TRIANGLE and stack[1] == EMPTY
 
 
 @inline_kernel
@@ -136,7 +188,8 @@ def record(nb, j, path, key, dim, lt, light, o, d, tmax, beta, sigma_s, sigma_t,
     q_path[j] = path
     # The light's data too: the SIMD loop then reads only rows at j (a gather by light index
     # would keep LLVM from bounding the loop's memory accesses, and so from vectorising it).
-    pos, vec_a, vec_b, color, color_b, param, pmf = lt[1], lt[2], lt[3], lt[4], lt[5], lt[6], lt[7]
+    pos, vec_a, vec_b, param, pmf = lt[LT_POS], lt[LT_VEC_A], lt[LT_VEC_B], lt[LT_PARAM], lt[LT_PMF]
+    color, color_b = lt[LT_COLOR], lt[LT_COLOR_B]
     for k in range(3):
         q[(Q_P0 + k) * CHUNK + j] = pos[light, k]
         q[(Q_EA + k) * CHUNK + j] = vec_a[light, k]
@@ -153,107 +206,12 @@ def _u(q_key, q_dim, j, offset):
     return uniform(q_key[j], q_dim[j] + offset)
 
 
-# The maths below is media/nee.py's nee_vertex_on and lights/sample.py's connect_light for a
-# triangle, with both branches of each choice computed and one kept by a select. It calls
-# the shared kernels wherever those are already free of calls (pick_channel, optical_depth,
-# truncated_pdf, sample_spherical_triangle, hg_eval) and restates only what is not: the
-# equiangular sampler and free flight (libm fallbacks in fastmath's log1p and atan2, which
-# simdmath leaves out) and the choice between solid-angle and area sampling.
-
-
-@inline_kernel
-def _pick(c, a, b, e):
-    return a if c == 0 else (b if c == 1 else e)
-
-
-@inline_kernel
-def _truncated_sample(sigma, tmax, miss, u):
-    ok = sigma > 0.0 and miss > 0.0
-    t = min(-sm.log1p(-u * miss) / (sigma if ok else 1.0), tmax)
-    return t if ok else u * tmax
-
-
-@inline_kernel
-def _light_point(q, j, u1, u2):
-    """lights.sample.light_point of request j's triangle."""
-    su = math.sqrt(u1)
-    b1 = 1.0 - su
-    b2 = u2 * su
-    p0, ea, eb = _row3(q, Q_P0, j), _row3(q, Q_EA, j), _row3(q, Q_EB, j)
-    return (p0[0] + b1 * ea[0] + b2 * eb[0], p0[1] + b1 * ea[1] + b2 * eb[1], p0[2] + b1 * ea[2] + b2 * eb[2])
-
-
-@inline_kernel
-def _vertex(q, j, lp, u_technique, u_channel, u_t):
-    """(t, weight3, valid) of the next-event vertex on [0, tmax) (media.nee.nee_vertex_on)."""
-    ox, oy, oz = _row3(q, Q_O, j)
-    dx, dy, dz = _row3(q, Q_D, j)
-    tmax = q[Q_TMAX * CHUNK + j]
-    st0, st1, st2 = _row3(q, Q_ST, j)
-    ss0, ss1, ss2 = _row3(q, Q_SS, j)
-    m0, m1, m2 = _row3(q, Q_MISS, j)
-    p0, p1, p2 = _row3(q, Q_P, j)
-    use_eq = q[Q_EQUIANGULAR * CHUNK + j] != 0.0
-    # Equiangular frame toward the light point.
-    lx, ly, lz = lp[0] - ox, lp[1] - oy, lp[2] - oz
-    delta = lx * dx + ly * dy + lz * dz
-    px, py, pz = lx - delta * dx, ly - delta * dy, lz - delta * dz
-    big_d = max(math.sqrt(px * px + py * py + pz * pz), D_FLOOR * abs(delta), D_MIN)
-    theta_d = sm.atan2(big_d * tmax, big_d * big_d - delta * (tmax - delta))
-    degenerate = not theta_d >= MIN_THETA
-    sin_phi, cos_phi = sm.sincos(u_t * theta_d)
-    denom = big_d * cos_phi + delta * sin_phi
-    t_eq = min(max((delta * delta + big_d * big_d) * sin_phi / denom, 0.0), tmax)
-    t_eq = tmax if denom <= 0.0 else t_eq
-    t_eq = u_t * tmax if degenerate else t_eq
-    # Truncated free flight in the channel chosen by p.
-    c = pick_channel((p0, p1, p2), u_channel)
-    t_ff = _truncated_sample(_pick(c, st0, st1, st2), tmax, _pick(c, m0, m1, m2), u_t)
-    t = t_eq if (use_eq and u_technique < 0.5) else t_ff
-    tr0 = sm.exp_neg(optical_depth(st0, t))
-    tr1 = sm.exp_neg(optical_depth(st1, t))
-    tr2 = sm.exp_neg(optical_depth(st2, t))
-    pdf = (p0 * truncated_pdf(st0, tmax, m0, tr0) + p1 * truncated_pdf(st1, tmax, m1, tr1)
-           + p2 * truncated_pdf(st2, tmax, m2, tr2))
-    x = t - delta
-    pdf_eq = 1.0 / tmax if degenerate else big_d / (theta_d * (big_d * big_d + x * x))
-    pdf = 0.5 * pdf + 0.5 * pdf_eq if use_eq else pdf
-    valid = (ss0 > 0.0 or ss1 > 0.0 or ss2 > 0.0) and tmax > 0.0
-    inv = 1.0 / pdf
-    return t, (tr0 * ss0 * inv, tr1 * ss1 * inv, tr2 * ss2 * inv), valid
-
-
-@inline_kernel
-def connect_triangle(p0, p1, p2, lp, area, x, u1, u2):
-    """(wi, dist, back_side, pdf) of lights.sample.connect_light for the triangle light
-    p0 p1 p2 of the given area (lp: its area-sampled point), without branches, so that a
-    loop calling it vectorises; pdf 0 when there is no connection."""
-    near = looks_near(x, p0, p1, p2)
-    # Solid angle and Arvo's direction.
-    a = unit_or_zero(sub(p0, x))
-    b = unit_or_zero(sub(p1, x))
-    c = unit_or_zero(sub(p2, x))
-    omega = 2.0 * sm.atan2(abs(dot(a, cross(b, c))), 1.0 + dot(a, b) + dot(b, c) + dot(c, a))
-    solid = near and omega >= MIN_SOLID_ANGLE and omega < math.inf
-    w_sa = sample_spherical_triangle(a, b, c, omega, u1, u2)
-    n = unit_or_zero(cross(sub(p1, p0), sub(p2, p0)))
-    cos_sa = -dot(w_sa, n)
-    dist_sa = ((x[0] - p0[0]) * n[0] + (x[1] - p0[1]) * n[1] + (x[2] - p0[2]) * n[2]) / (
-        cos_sa if cos_sa != 0.0 else 1.0)
-    ok_sa = cos_sa != 0.0 and dist_sa > 0.0 and dist_sa < math.inf
-    # Area sampling toward the light point.
-    tx, ty, tz = lp[0] - x[0], lp[1] - x[1], lp[2] - x[2]
-    dist_a = math.sqrt(tx * tx + ty * ty + tz * tz)
-    inv = 1.0 / dist_a if dist_a > 0.0 else 0.0
-    w_a = (tx * inv, ty * inv, tz * inv)
-    cos_a = -dot(w_a, n)
-    ok_a = dist_a > 0.0 and abs(cos_a) >= 1e-8 and area > 0.0
-    pdf_a = dist_a * dist_a / (area * abs(cos_a)) if ok_a else 0.0
-    wi = w_sa if solid else w_a
-    dist = dist_sa if solid else dist_a
-    cos_l = cos_sa if solid else cos_a
-    pdf = (1.0 / omega if ok_sa else 0.0) if solid else pdf_a
-    return wi, dist, cos_l < 0.0, pdf
+# The four loops below are the batch's driver: each reads a request's rows, calls the
+# branch-free form of the concept it computes, which lives beside the concept's scalar form
+# (homogeneous.segment_simd, spectral.channel_probabilities_simd, sample.triangle_point,
+# nee.nee_vertex_simd, sample.connect_triangle_simd, homogeneous.free_flight_segment_simd,
+# hg.hg_direction), and writes the results' rows. They hold no branch and no call LLVM
+# cannot inline, so it vectorises them (tests/test_nee_batch.py checks the IR).
 
 
 @kernel
@@ -262,25 +220,10 @@ def segments(n, nb, uniform_channel):
     channel) and the channel probabilities of spectral MIS."""
     q, _, _, _, _ = nb
     for j in range(n):
-        tmax = q[Q_TMAX * CHUNK + j]
-        x0 = optical_depth(q[Q_ST * CHUNK + j], tmax)
-        x1 = optical_depth(q[(Q_ST + 1) * CHUNK + j], tmax)
-        x2 = optical_depth(q[(Q_ST + 2) * CHUNK + j], tmax)
-        tr0, tr1, tr2 = sm.exp_neg(x0), sm.exp_neg(x1), sm.exp_neg(x2)
-        _put3(q, Q_TR, j, (tr0, tr1, tr2))
-        q[Q_MISS * CHUNK + j] = sm.one_minus_exp_neg(x0, tr0)
-        q[(Q_MISS + 1) * CHUNK + j] = sm.one_minus_exp_neg(x1, tr1)
-        q[(Q_MISS + 2) * CHUNK + j] = sm.one_minus_exp_neg(x2, tr2)
-        # spectral.channel_probabilities without its early returns
-        a = max(q[Q_BETA * CHUNK + j], 0.0)
-        b = max(q[(Q_BETA + 1) * CHUNK + j], 0.0)
-        c = max(q[(Q_BETA + 2) * CHUNK + j], 0.0)
-        total = a + b + c
-        by_throughput = not uniform_channel and total > 0.0 and total < math.inf
-        inv = 1.0 / total if by_throughput else 1.0
-        q[Q_P * CHUNK + j] = a * inv if by_throughput else THIRD
-        q[(Q_P + 1) * CHUNK + j] = b * inv if by_throughput else THIRD
-        q[(Q_P + 2) * CHUNK + j] = c * inv if by_throughput else THIRD
+        tr, miss = segment_simd(_row3(q, Q_ST, j), q[Q_TMAX * CHUNK + j])
+        _put3(q, Q_TR, j, tr)
+        _put3(q, Q_MISS, j, miss)
+        _put3(q, Q_P, j, channel_probabilities_simd(_row3(q, Q_BETA, j), uniform_channel))
 
 
 @kernel
@@ -289,16 +232,18 @@ def vertices(n, nb):
     vertex's weight (0 when none)."""
     q, q_key, q_dim, _, r = nb
     for j in range(n):
-        lp = _light_point(q, j, _u(q_key, q_dim, j, SEG_LIGHT + 1), _u(q_key, q_dim, j, SEG_LIGHT + 2))
-        t, wn, valid = _vertex(q, j, lp, _u(q_key, q_dim, j, SEG_VERTEX), _u(q_key, q_dim, j, SEG_VERTEX + 1),
-                               _u(q_key, q_dim, j, SEG_VERTEX + 2))
+        lp = triangle_point(_row3(q, Q_P0, j), _row3(q, Q_EA, j), _row3(q, Q_EB, j),
+                            _u(q_key, q_dim, j, SEG_LIGHT + 1), _u(q_key, q_dim, j, SEG_LIGHT + 2))
+        o = _row3(q, Q_O, j)
+        d = _row3(q, Q_D, j)
+        t, wn, valid = nee_vertex_simd(o, d, q[Q_TMAX * CHUNK + j], _row3(q, Q_SS, j), _row3(q, Q_ST, j),
+                                       _row3(q, Q_MISS, j), _row3(q, Q_P, j), lp,
+                                       q[Q_EQUIANGULAR * CHUNK + j] != 0.0, _u(q_key, q_dim, j, SEG_VERTEX),
+                                       _u(q_key, q_dim, j, SEG_VERTEX + 1),
+                                       _u(q_key, q_dim, j, SEG_VERTEX + 2))
         _put3(r, R_LP, j, lp)
-        r[R_X * CHUNK + j] = q[Q_O * CHUNK + j] + t * q[Q_D * CHUNK + j]
-        r[(R_X + 1) * CHUNK + j] = q[(Q_O + 1) * CHUNK + j] + t * q[(Q_D + 1) * CHUNK + j]
-        r[(R_X + 2) * CHUNK + j] = q[(Q_O + 2) * CHUNK + j] + t * q[(Q_D + 2) * CHUNK + j]
-        r[R_C * CHUNK + j] = wn[0] if valid else 0.0
-        r[(R_C + 1) * CHUNK + j] = wn[1] if valid else 0.0
-        r[(R_C + 2) * CHUNK + j] = wn[2] if valid else 0.0
+        _put3(r, R_X, j, (o[0] + t * d[0], o[1] + t * d[1], o[2] + t * d[2]))
+        _put3(r, R_C, j, (wn[0] if valid else 0.0, wn[1] if valid else 0.0, wn[2] if valid else 0.0))
 
 
 @kernel
@@ -316,9 +261,9 @@ def connections(n, nb, mis, with_transmittance):
         ea, eb = _row3(q, Q_EA, j), _row3(q, Q_EB, j)
         p1 = (p0[0] + ea[0], p0[1] + ea[1], p0[2] + ea[2])
         p2 = (p0[0] + eb[0], p0[1] + eb[1], p0[2] + eb[2])
-        wi, dist, back, pdf = connect_triangle(p0, p1, p2, _row3(r, R_LP, j), q[Q_AREA * CHUNK + j], x,
-                                               _u(q_key, q_dim, j, SEG_CONNECT),
-                                               _u(q_key, q_dim, j, SEG_CONNECT + 1))
+        wi, dist, back, pdf = connect_triangle_simd(p0, p1, p2, _row3(r, R_LP, j), q[Q_AREA * CHUNK + j], x,
+                                                    _u(q_key, q_dim, j, SEG_CONNECT),
+                                                    _u(q_key, q_dim, j, SEG_CONNECT + 1))
         # A blend with weights 0 and 1 (exact), not `back ? row_b : row_f`: LLVM turns a
         # select of two loads into a load from a selected address, which it cannot vectorise.
         f = 1.0 if back else 0.0
@@ -327,6 +272,7 @@ def connections(n, nb, mis, with_transmittance):
         le2 = q[(Q_LE_FRONT + 2) * CHUNK + j] * (1.0 - f) + q[(Q_LE_BACK + 2) * CHUNK + j] * f
         p_light = pdf * q[Q_PMF * CHUNK + j]
         ph = hg_eval(q[Q_G * CHUNK + j], dot(d, wi))
+        # The power heuristic of paths.light_sample_weight, as selects.
         a2 = p_light * p_light
         b2 = ph * ph
         w = (a2 / (a2 + b2) if a2 + b2 > 0.0 else 0.0) if mis else 1.0
@@ -334,49 +280,23 @@ def connections(n, nb, mis, with_transmittance):
         _put3(r, R_WI, j, wi)
         length = dist * 0.9999
         r[R_LENGTH * CHUNK + j] = length
-        tr0 = sm.exp_neg(optical_depth(q[Q_ST * CHUNK + j], length)) if with_transmittance else 1.0
-        tr1 = sm.exp_neg(optical_depth(q[(Q_ST + 1) * CHUNK + j], length)) if with_transmittance else 1.0
-        tr2 = sm.exp_neg(optical_depth(q[(Q_ST + 2) * CHUNK + j], length)) if with_transmittance else 1.0
+        tr0, tr1, tr2 = beer_simd(_row3(q, Q_ST, j), length) if with_transmittance else (1.0, 1.0, 1.0)
         r[R_C * CHUNK + j] = q[Q_BETA * CHUNK + j] * r[R_C * CHUNK + j] * le0 * k * tr0
         r[(R_C + 1) * CHUNK + j] = q[(Q_BETA + 1) * CHUNK + j] * r[(R_C + 1) * CHUNK + j] * le1 * k * tr1
         r[(R_C + 2) * CHUNK + j] = q[(Q_BETA + 2) * CHUNK + j] * r[(R_C + 2) * CHUNK + j] * le2 * k * tr2
 
 
-@inline_kernel
-def _free_flight(q, j, u_channel, u_distance):
-    """(t, scattered, weight3) of homogeneous.free_flight_segment (medium.sample_segment:
-    weight T(tmax) with no sample when nothing scatters)."""
-    tmax = q[Q_TMAX * CHUNK + j]
-    st0, st1, st2 = _row3(q, Q_ST, j)
-    ss0, ss1, ss2 = _row3(q, Q_SS, j)
-    te0, te1, te2 = _row3(q, Q_TR, j)
-    p0, p1, p2 = _row3(q, Q_P, j)
-    scatters = ss0 > 0.0 or ss1 > 0.0 or ss2 > 0.0
-    sigma = _pick(pick_channel((p0, p1, p2), u_channel), st0, st1, st2)
-    t = -sm.log1p(-u_distance) / (sigma if sigma > 0.0 else 1.0)
-    hit = scatters and sigma > 0.0 and t < tmax
-    t = t if hit else tmax
-    ts = t if hit else 0.0  # keeps exp finite-argument on the branch not taken
-    tr0 = sm.exp_neg(optical_depth(st0, ts))
-    tr1 = sm.exp_neg(optical_depth(st1, ts))
-    tr2 = sm.exp_neg(optical_depth(st2, ts))
-    pdf = p0 * st0 * tr0 + p1 * st1 * tr1 + p2 * st2 * tr2
-    prob = p0 * te0 + p1 * te1 + p2 * te2
-    inv = 1.0 / (pdf if hit else (prob if scatters else 1.0))
-    w0 = (tr0 * ss0 if hit else te0) * inv
-    w1 = (tr1 * ss1 if hit else te1) * inv
-    w2 = (tr2 * ss2 if hit else te2) * inv
-    return t, hit, (w0, w1, w2)
-
-
 @kernel
 def advance(n, nb):
     """Stage 3: the path's own free flight on its segment, and where it scatters the
-    Henyey-Greenstein direction and Russian roulette (kernels.shade_media's scalar path)."""
+    Henyey-Greenstein direction and Russian roulette (media_stage.shade_media's scalar
+    path)."""
     q, q_key, q_dim, _, r = nb
     for j in range(n):
-        t, hit, w = _free_flight(q, j, _u(q_key, q_dim, j, SEG_FREE_FLIGHT),
-                                 _u(q_key, q_dim, j, SEG_FREE_FLIGHT + 1))
+        t, hit, w = free_flight_segment_simd(_row3(q, Q_SS, j), _row3(q, Q_ST, j), _row3(q, Q_TR, j),
+                                             q[Q_TMAX * CHUNK + j], _row3(q, Q_P, j),
+                                             _u(q_key, q_dim, j, SEG_FREE_FLIGHT),
+                                             _u(q_key, q_dim, j, SEG_FREE_FLIGHT + 1))
         b0, b1, b2 = _row3(q, Q_BETA, j)
         b0, b1, b2 = b0 * w[0], b1 * w[1], b2 * w[2]
         alive = max(b0, max(b1, b2)) > 0.0
@@ -384,7 +304,8 @@ def advance(n, nb):
         g = q[Q_G * CHUNK + j]
         sin_phi, cos_phi = sm.sincos(2.0 * math.pi * _u(q_key, q_dim, j, SEG_PHASE + 2))
         wi, pdf = hg_direction(g, d, _u(q_key, q_dim, j, SEG_PHASE + 1), sin_phi, cos_phi)
-        # Russian roulette on the scattered path (one lobe: the phase weight is 1).
+        # Russian roulette on the scattered path (one lobe: the phase weight is 1), as
+        # paths.russian_roulette with selects.
         roulette = q[Q_RR * CHUNK + j] != 0.0
         keep = min(1.0, max(b0, max(b1, b2)))
         survives = not roulette or (keep > 0.0 and _u(q_key, q_dim, j, SEG_RR) < keep)

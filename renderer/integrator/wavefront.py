@@ -8,27 +8,13 @@ import numpy as np
 from ..compile import MAX_STACK, CompiledScene
 from ..film import Film
 from ..geometry import Intersector
+from ..lights.table import kernel_arrays
 from ..media.layout import dda_scratch
 from ..scene import IntegratorSettings
-from . import kernels as K
+from . import stages as K
+from .config import make_config
 from .nee_batch import NeeBatch
 from .state import allocate_paths, allocate_shadows
-
-SAMPLING_CODES = {"mis": K.SAMPLING_MIS, "nee": K.SAMPLING_NEE, "bsdf": K.SAMPLING_BSDF}
-
-
-def make_config(cs: CompiledScene, settings: IntegratorSettings) -> np.ndarray:
-    cfg = np.zeros(K.CFG_SIZE, np.int64)
-    cfg[K.CFG_MAX_BOUNCES] = settings.max_bounces
-    cfg[K.CFG_RR_DEPTH] = settings.rr_depth
-    cfg[K.CFG_SAMPLING] = SAMPLING_CODES[settings.sampling]
-    cfg[K.CFG_DELTA_TR] = settings.transmittance == "delta"
-    cfg[K.CFG_UNIFORM_CHANNEL] = settings.distance_sampling == "uniform"
-    cfg[K.CFG_EQUIANGULAR] = settings.equiangular
-    cfg[K.CFG_HAS_MEDIA] = cs.has_media
-    cfg[K.CFG_WALK_SHADOWS] = cs.needs_shadow_walk
-    cfg[K.CFG_NEE_BATCH] = 1
-    return cfg
 
 
 def camera_medium_stack(cs: CompiledScene, isect: Intersector) -> np.ndarray:
@@ -82,8 +68,7 @@ class Tracer:
         self.pixel_of_pid = np.zeros(self.batch, np.int32)
         self.remaining = np.zeros(2 * self.batch, np.float32)
         self.cfg = make_config(cs, settings)
-        lt = cs.lights
-        self.lt = (lt.kind, lt.pos, lt.vec_a, lt.vec_b, lt.color, lt.color_b, lt.param, lt.pmf, lt.cdf)
+        self.lt = kernel_arrays(cs.lights)
         self.init_stack = camera_medium_stack(cs, self.isect)
         self.stats = {"rays": 0, "shadow_rays": 0, "embree_s": 0.0}
 

@@ -1,6 +1,6 @@
 """Light sampling kernels over the LightTable (see renderer.lights.table).
 
-`lt` is the tuple (kind, pos, vec_a, vec_b, color, color_b, param, pmf, cdf). Light
+`lt` is the table's arrays as a tuple (table.kernel_arrays), read by the LT_* names. Light
 sampling is split in two so that a medium can place its next-event vertex toward the
 chosen point (equiangular sampling) before the connection is made:
   pick_light     -> a row, by power
@@ -9,17 +9,62 @@ chosen point (equiangular sampling) before the connection is made:
                     triangles are sampled by the solid angle they subtend there (see
                     spherical_triangle.py), the light point serving only the medium's
                     equiangular vertex (and the area fallback for tiny solid angles)
+
+The triangle's point and connection also serve the SIMD batch of homogeneous medium
+segments (renderer.integrator.nee_batch), which needs them without branches:
+triangle_point is, and connect_triangle_simd is connect_light's triangle case with both
+techniques computed and one kept by a select.
 """
 
 import math
 
 from ..kernels import fastmath as fm
 from ..kernels import inline_kernel
+from ..kernels import simdmath as sm
 from ..kernels.vecmath import INV_4PI, add, cross, dot, length, normalize, onb, scale, sub, to_world
-from .spherical_triangle import sample_spherical_triangle, spherical_triangle, use_solid_angle
-from .table import POINT, SPOT, SUN, TRIANGLE
+from .spherical_triangle import (
+    MIN_SOLID_ANGLE,
+    sample_spherical_triangle,
+    spherical_triangle,
+    unit_or_zero,
+    use_solid_angle,
+)
+from .table import (
+    LT_CDF,
+    LT_COLOR,
+    LT_COLOR_B,
+    LT_KIND,
+    LT_PARAM,
+    LT_PMF,
+    LT_POS,
+    LT_VEC_A,
+    LT_VEC_B,
+    POINT,
+    SPOT,
+    SUN,
+    TRIANGLE,
+)
 
 SOLID_ANGLE_GATE = 0.05  # sr; see looks_near
+
+
+@inline_kernel
+def light_cdf(lt):
+    """The cdf pick_light searches: L + 1 entries, so more than one when there are lights."""
+    return lt[LT_CDF]
+
+
+@inline_kernel
+def light_pmf(lt, light):
+    """Probability that pick_light chooses `light`."""
+    return lt[LT_PMF][light]
+
+
+@inline_kernel
+def triangle_emission(lt, light, front):
+    """Radiance triangle light `light` emits from its front or its back side."""
+    c = lt[LT_COLOR] if front else lt[LT_COLOR_B]
+    return (float(c[light, 0]), float(c[light, 1]), float(c[light, 2]))
 
 
 @inline_kernel
@@ -40,7 +85,7 @@ def pick_light(cdf, u):
 
 @inline_kernel
 def light_has_point(lt, light):
-    k = lt[0][light]
+    k = lt[LT_KIND][light]
     return k == TRIANGLE or k == POINT or k == SPOT
 
 
@@ -48,16 +93,24 @@ def light_has_point(lt, light):
 def light_point(lt, light, u1, u2):
     """A point on the light, uniform by area for triangles; the position of point and spot
     lights; the origin for sun and environment (which have no point)."""
-    kind, pos, vec_a, vec_b = lt[0], lt[1], lt[2], lt[3]
+    kind, pos, vec_a, vec_b = lt[LT_KIND], lt[LT_POS], lt[LT_VEC_A], lt[LT_VEC_B]
     p = (float(pos[light, 0]), float(pos[light, 1]), float(pos[light, 2]))
     if kind[light] != TRIANGLE:
         return p
+    return triangle_point(p, (vec_a[light, 0], vec_a[light, 1], vec_a[light, 2]),
+                          (vec_b[light, 0], vec_b[light, 1], vec_b[light, 2]), u1, u2)
+
+
+@inline_kernel
+def triangle_point(p0, edge_a, edge_b, u1, u2):
+    """A point uniform by area on the triangle p0, p0 + edge_a, p0 + edge_b. Branch-free:
+    the SIMD batch (renderer.integrator.nee_batch) calls it too."""
     su = math.sqrt(u1)
     b1 = 1.0 - su
     b2 = u2 * su
-    return (p[0] + b1 * vec_a[light, 0] + b2 * vec_b[light, 0],
-            p[1] + b1 * vec_a[light, 1] + b2 * vec_b[light, 1],
-            p[2] + b1 * vec_a[light, 2] + b2 * vec_b[light, 2])
+    return (p0[0] + b1 * edge_a[0] + b2 * edge_b[0],
+            p0[1] + b1 * edge_a[1] + b2 * edge_b[1],
+            p0[2] + b1 * edge_a[2] + b2 * edge_b[2])
 
 
 @inline_kernel
@@ -81,7 +134,7 @@ def spot_attenuation(axis, cos_outer, blend_width, wi_from_light):
 
 @inline_kernel
 def _triangle(lt, light):
-    pos, vec_a, vec_b = lt[1], lt[2], lt[3]
+    pos, vec_a, vec_b = lt[LT_POS], lt[LT_VEC_A], lt[LT_VEC_B]
     p0 = (float(pos[light, 0]), float(pos[light, 1]), float(pos[light, 2]))
     e1 = (float(vec_a[light, 0]), float(vec_a[light, 1]), float(vec_a[light, 2]))
     e2 = (float(vec_b[light, 0]), float(vec_b[light, 1]), float(vec_b[light, 2]))
@@ -111,7 +164,7 @@ def _connect_direction(lt, light, x, p0, p1, p2, wi, omega, c):
     if not (dist > 0.0 and math.isfinite(dist)):
         return wi, 0.0, (0.0, 0.0, 0.0), 0.0, False
     if cos_l < 0.0:
-        color_b = lt[5]
+        color_b = lt[LT_COLOR_B]
         c = (float(color_b[light, 0]), float(color_b[light, 1]), float(color_b[light, 2]))
     return wi, dist, c, 1.0 / omega, False
 
@@ -124,7 +177,8 @@ def connect_light(lt, light, lp, x, u1, u2):
     radiance, or intensity / dist^2 for delta lights), pdf (solid angle, without the light's
     selection probability; 1 for delta lights), is_delta).
     """
-    kind, vec_a, vec_b, color, color_b, param = lt[0], lt[2], lt[3], lt[4], lt[5], lt[6]
+    kind, vec_a, vec_b, param = lt[LT_KIND], lt[LT_VEC_A], lt[LT_VEC_B], lt[LT_PARAM]
+    color, color_b = lt[LT_COLOR], lt[LT_COLOR_B]
     k = kind[light]
     c = (float(color[light, 0]), float(color[light, 1]), float(color[light, 2]))
     if k == TRIANGLE:
@@ -179,10 +233,44 @@ def connect_light(lt, light, lp, x, u1, u2):
 
 
 @inline_kernel
+def connect_triangle_simd(p0, p1, p2, lp, area, x, u1, u2):
+    """(wi, dist, back_side, pdf) of connect_light for the triangle light p0 p1 p2 of the
+    given area (lp: its area-sampled point), without branches, so that a loop calling it
+    vectorises (the SIMD batch, renderer.integrator.nee_batch); pdf 0 when there is no
+    connection. Both techniques are computed and looks_near's rule keeps one."""
+    near = looks_near(x, p0, p1, p2)
+    # Solid angle and Arvo's direction.
+    a = unit_or_zero(sub(p0, x))
+    b = unit_or_zero(sub(p1, x))
+    c = unit_or_zero(sub(p2, x))
+    omega = 2.0 * sm.atan2(abs(dot(a, cross(b, c))), 1.0 + dot(a, b) + dot(b, c) + dot(c, a))
+    solid = near and omega >= MIN_SOLID_ANGLE and omega < math.inf
+    w_sa = sample_spherical_triangle(a, b, c, omega, u1, u2)
+    n = unit_or_zero(cross(sub(p1, p0), sub(p2, p0)))
+    cos_sa = -dot(w_sa, n)
+    dist_sa = ((x[0] - p0[0]) * n[0] + (x[1] - p0[1]) * n[1] + (x[2] - p0[2]) * n[2]) / (
+        cos_sa if cos_sa != 0.0 else 1.0)
+    ok_sa = cos_sa != 0.0 and dist_sa > 0.0 and dist_sa < math.inf
+    # Area sampling toward the light point.
+    tx, ty, tz = lp[0] - x[0], lp[1] - x[1], lp[2] - x[2]
+    dist_a = math.sqrt(tx * tx + ty * ty + tz * tz)
+    inv = 1.0 / dist_a if dist_a > 0.0 else 0.0
+    w_a = (tx * inv, ty * inv, tz * inv)
+    cos_a = -dot(w_a, n)
+    ok_a = dist_a > 0.0 and abs(cos_a) >= 1e-8 and area > 0.0
+    pdf_a = dist_a * dist_a / (area * abs(cos_a)) if ok_a else 0.0
+    wi = w_sa if solid else w_a
+    dist = dist_sa if solid else dist_a
+    cos_l = cos_sa if solid else cos_a
+    pdf = (1.0 / omega if ok_sa else 0.0) if solid else pdf_a
+    return wi, dist, cos_l < 0.0, pdf
+
+
+@inline_kernel
 def escaped_radiance(lt, env_light, sun_rows, d):
     """Radiance arriving along direction d from infinity (environment and sun discs), and
     the light-sampling pdf of that direction including selection probabilities (for MIS)."""
-    pmf, color, vec_a, param = lt[7], lt[4], lt[2], lt[6]
+    pmf, color, vec_a, param = lt[LT_PMF], lt[LT_COLOR], lt[LT_VEC_A], lt[LT_PARAM]
     r, g, b, pdf = 0.0, 0.0, 0.0, 0.0
     if env_light >= 0:
         r += color[env_light, 0]
@@ -208,11 +296,11 @@ def triangle_light_pdf(lt, light, x, p, cos_l):
     if looks_near(x, p0, p1, p2):
         omega = spherical_triangle(x, p0, p1, p2)[0]
         if use_solid_angle(omega):
-            return lt[7][light] / omega
-    area = lt[6][light, 0]
+            return lt[LT_PMF][light] / omega
+    area = lt[LT_PARAM][light, 0]
     if area <= 0.0 or abs(cos_l) < 1e-8:
         return 0.0
     to = sub(p, x)
-    return lt[7][light] * dot(to, to) / (area * abs(cos_l))
+    return lt[LT_PMF][light] * dot(to, to) / (area * abs(cos_l))
 
 

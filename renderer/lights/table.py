@@ -46,6 +46,26 @@ class LightTable(NamedTuple):
     sun_rows: np.ndarray  # (S,) int32 rows of suns with a disc (angle > 0), hit by escaping rays
 
 
+# The kernels take the table's arrays as one positional tuple, `lt` (numba passes a tuple of
+# arrays as cheaply as one argument each). Its order is declared once here; kernels index it
+# with these LT_* constants only.
+KERNEL_FIELDS = ("kind", "pos", "vec_a", "vec_b", "color", "color_b", "param", "pmf", "cdf")
+LT_KIND = KERNEL_FIELDS.index("kind")
+LT_POS = KERNEL_FIELDS.index("pos")
+LT_VEC_A = KERNEL_FIELDS.index("vec_a")
+LT_VEC_B = KERNEL_FIELDS.index("vec_b")
+LT_COLOR = KERNEL_FIELDS.index("color")
+LT_COLOR_B = KERNEL_FIELDS.index("color_b")
+LT_PARAM = KERNEL_FIELDS.index("param")
+LT_PMF = KERNEL_FIELDS.index("pmf")
+LT_CDF = KERNEL_FIELDS.index("cdf")
+
+
+def kernel_arrays(table: LightTable) -> tuple:
+    """The `lt` tuple the kernels take (see KERNEL_FIELDS)."""
+    return tuple(getattr(table, field) for field in KERNEL_FIELDS)
+
+
 def _luminance(c) -> float:
     return LUMINANCE[0] * c[0] + LUMINANCE[1] * c[1] + LUMINANCE[2] * c[2]
 

@@ -2,13 +2,20 @@
 
 Coefficients of the stack's entries add (Cycles' rule), so a homogeneous stack is one
 homogeneous medium with sigma = sum of the entries' sigma.
+
+The segment constants, Beer's law, truncated and free-flight sampling also come in a
+branch-free form (*_simd, at the end) for the SIMD batch of homogeneous segments
+(renderer.integrator.nee_batch): every case computed and one kept by a select, with
+simdmath's exp and log1p (no libm fallback, no errno), so that a loop calling them
+vectorises across paths. tests/test_nee_batch.py holds the two forms to 1e-11.
 """
 
 import math
 
 from renderer.kernels import fastmath as fm
 from renderer.kernels import inline_kernel
-from renderer.media.spectral import pick_channel
+from renderer.kernels import simdmath as sm
+from renderer.media.spectral import channel_value, pick_channel
 from renderer.media.stack import EMPTY, MAX_STACK
 from renderer.media.table import emission, emits, sigma_a, sigma_s
 
@@ -166,3 +173,56 @@ def free_flight_segment(sigma_s, st, tr_end, tmax, p, u_channel, u_distance):
     tr = tr_end
     prob = p[0] * tr[0] + p[1] * tr[1] + p[2] * tr[2]
     return tmax, False, (tr[0] / prob, tr[1] / prob, tr[2] / prob)
+
+
+# ------------------------------------------------------------------------- branch-free forms
+
+
+@inline_kernel
+def segment_simd(sigma_t, tmax):
+    """(T(tmax), 1 - T(tmax)) per channel: segment's constants given the stack's sigma_t."""
+    x0 = optical_depth(sigma_t[0], tmax)
+    x1 = optical_depth(sigma_t[1], tmax)
+    x2 = optical_depth(sigma_t[2], tmax)
+    tr0, tr1, tr2 = sm.exp_neg(x0), sm.exp_neg(x1), sm.exp_neg(x2)
+    miss = (sm.one_minus_exp_neg(x0, tr0), sm.one_minus_exp_neg(x1, tr1), sm.one_minus_exp_neg(x2, tr2))
+    return (tr0, tr1, tr2), miss
+
+
+@inline_kernel
+def beer_simd(sigma_t, t):
+    """beer without its grey-medium shortcut."""
+    return (sm.exp_neg(optical_depth(sigma_t[0], t)), sm.exp_neg(optical_depth(sigma_t[1], t)),
+            sm.exp_neg(optical_depth(sigma_t[2], t)))
+
+
+@inline_kernel
+def sample_truncated_simd(sigma, tmax, miss, u):
+    """sample_truncated without branches."""
+    ok = sigma > 0.0 and miss > 0.0
+    t = min(-sm.log1p(-u * miss) / (sigma if ok else 1.0), tmax)
+    return t if ok else u * tmax
+
+
+@inline_kernel
+def free_flight_segment_simd(sigma_s, st, tr_end, tmax, p, u_channel, u_distance):
+    """free_flight_segment without branches, as medium.sample_segment uses it: where nothing
+    scatters (sigma_s = 0) no collision is sampled and the weight is T(tmax) itself.
+    Returns (t, scattered, weight)."""
+    ss0, ss1, ss2 = sigma_s
+    st0, st1, st2 = st
+    te0, te1, te2 = tr_end
+    p0, p1, p2 = p
+    scatters = ss0 > 0.0 or ss1 > 0.0 or ss2 > 0.0
+    sigma = channel_value(pick_channel(p, u_channel), st0, st1, st2)
+    t = -sm.log1p(-u_distance) / (sigma if sigma > 0.0 else 1.0)
+    hit = scatters and sigma > 0.0 and t < tmax
+    t = t if hit else tmax
+    tr0, tr1, tr2 = beer_simd(st, t if hit else 0.0)  # a finite exponent on the branch not taken
+    pdf = p0 * st0 * tr0 + p1 * st1 * tr1 + p2 * st2 * tr2
+    prob = p0 * te0 + p1 * te1 + p2 * te2
+    inv = 1.0 / (pdf if hit else (prob if scatters else 1.0))
+    w0 = (tr0 * ss0 if hit else te0) * inv
+    w1 = (tr1 * ss1 if hit else te1) * inv
+    w2 = (tr2 * ss2 if hit else te2) * inv
+    return t, hit, (w0, w1, w2)

@@ -1,0 +1,121 @@
+"""What every stage of the wavefront does to a path or a shadow ray: read and write its
+rows, weigh its samples by MIS, hand a shadow ray on, play Russian roulette.
+
+Path states (Paths.alive), as the stages hand a path on within one bounce:
+  PATH_DEAD       finished; compaction drops it
+  PATH_ACTIVE     its ray's closest hit (or escape) is the next thing to shade
+  PATH_SCATTERED  it scattered in a medium before that hit and already holds its next ray,
+                  so the surface stage leaves it alone this bounce
+Compaction turns every live path back to PATH_ACTIVE.
+"""
+
+import numpy as np
+
+from ..kernels import inline_kernel
+from ..kernels.rng import uniform
+from ..kernels.vecmath import dot, madd, max3, scale
+from .config import SAMPLING_BSDF, SAMPLING_NEE
+
+PATH_DEAD = 0
+PATH_ACTIVE = 1
+PATH_SCATTERED = 2
+
+RAY_FAR = 1e30  # "no hit" length of a ray, and the distance of lights at infinity
+
+
+@inline_kernel
+def load3(a, i):
+    """Row i of an (n, 3) array as a float64 3-tuple (float() would keep float32 in numba)."""
+    return (np.float64(a[i, 0]), np.float64(a[i, 1]), np.float64(a[i, 2]))
+
+
+@inline_kernel
+def store3(a, i, v):
+    a[i, 0] = v[0]
+    a[i, 1] = v[1]
+    a[i, 2] = v[2]
+
+
+@inline_kernel
+def add_radiance(L, pid, beta, le):
+    """L[pid] += beta * le, per channel."""
+    L[pid, 0] += beta[0] * le[0]
+    L[pid, 1] += beta[1] * le[1]
+    L[pid, 2] += beta[2] * le[2]
+
+
+@inline_kernel
+def add_weighted_radiance(L, pid, beta, le, w):
+    """L[pid] += beta * le * w, per channel."""
+    L[pid, 0] += beta[0] * le[0] * w
+    L[pid, 1] += beta[1] * le[1] * w
+    L[pid, 2] += beta[2] * le[2] * w
+
+
+@inline_kernel
+def offset_origin(x, ng, direction):
+    """Move x off its surface to the side `direction` leaves on (Embree has no tnear)."""
+    eps = 1e-4 * (1.0 + max(abs(x[0]), max(abs(x[1]), abs(x[2]))))
+    if dot(direction, ng) < 0.0:
+        eps = -eps
+    return madd(x, ng, eps)
+
+
+@inline_kernel
+def power_heuristic(a, b):
+    a2 = a * a
+    b2 = b * b
+    if a2 + b2 <= 0.0:
+        return 0.0
+    return a2 / (a2 + b2)
+
+
+@inline_kernel
+def light_sample_weight(pdf_light, pdf_scatter, is_delta, sampling):
+    """MIS weight of a light sample; pdf_light already includes the selection probability."""
+    if is_delta or sampling == SAMPLING_NEE:
+        return 1.0
+    return power_heuristic(pdf_light, pdf_scatter)
+
+
+@inline_kernel
+def hit_weight(mis_pdf, pdf_light, sampling):
+    """MIS weight of emission found by BSDF/phase sampling (mis_pdf 0 = camera or delta)."""
+    if mis_pdf <= 0.0 or sampling == SAMPLING_BSDF:
+        return 1.0
+    if sampling == SAMPLING_NEE:
+        return 0.0
+    return power_heuristic(mis_pdf, pdf_light)
+
+
+@inline_kernel
+def emit_shadow(sh, s, x, wi, dist, contrib, pid, key, dim, stack, gap):
+    """Write shadow ray s: from x along wi for dist, carrying contrib to path slot pid if it
+    arrives; it starts in the media of `stack` and tracks through them from dimension dim."""
+    store3(sh.o, s, x)
+    store3(sh.d, s, wi)
+    sh.tmax[s] = dist
+    sh.gap[s] = gap
+    store3(sh.contrib, s, contrib)
+    sh.pid[s] = pid
+    sh.key[s] = key
+    sh.dim[s] = dim
+    for j in range(stack.shape[0]):
+        sh.stack[s, j] = stack[j]
+    sh.alive[s] = 1
+
+
+@inline_kernel
+def russian_roulette(ps, i, key, dim, rr_depth):
+    """Survive with probability max(throughput) (capped at 1) after rr_depth bounces.
+    Returns (survived, next dimension)."""
+    if ps.depth[i] < rr_depth:
+        return True, dim
+    beta = load3(ps.beta, i)
+    q = min(1.0, max3(beta))
+    u = uniform(key, dim)
+    dim += 1
+    if q <= 0.0 or u >= q:
+        return False, dim
+    store3(ps.beta, i, scale(beta, 1.0 / q))
+    return True, dim

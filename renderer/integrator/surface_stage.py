@@ -1,0 +1,235 @@
+"""The surface stage: shade the closest hit of every path still PATH_ACTIVE after the
+medium stage.
+
+Per path: emission found by the ray (environment and sun discs for an escaped ray, an
+emitting triangle otherwise, MIS-weighted against light sampling), then at a surface with
+lobes next-event estimation, BSDF sampling and Russian roulette; a surface without lobes is
+an interface the path crosses without scattering. Crossing a surface's geometric side
+enters or leaves its medium (the path's medium stack).
+
+The stage holds no medium code, so a scene without media runs only this kernel per bounce:
+a single kernel holding both stages measured 36% slower on the surface Cornell box.
+"""
+
+import math
+
+from ..bsdfs.material import (
+    EVENT_ABSORB,
+    EVENT_PASS_THROUGH,
+    EVENT_SCATTER,
+    bsdf_eval,
+    bsdf_has_lobes,
+    bsdf_sample,
+)
+from ..kernels import inline_kernel, kernel
+from ..kernels.rng import uniform
+from ..kernels.vecmath import add, dot, madd, max3, mul, neg, normalize, onb, scale, sub, to_local, to_world
+from ..lights.sample import (
+    connect_light,
+    escaped_radiance,
+    light_cdf,
+    light_pmf,
+    light_point,
+    pick_light,
+    triangle_emission,
+    triangle_light_pdf,
+)
+from .config import CFG_MAX_BOUNCES, CFG_RR_DEPTH, CFG_SAMPLING, SAMPLING_BSDF, SAMPLING_NEE
+from .dims import SHADOW_DIMS
+from .media_api import stack_push, stack_remove
+from .paths import (
+    PATH_ACTIVE,
+    PATH_DEAD,
+    RAY_FAR,
+    add_weighted_radiance,
+    emit_shadow,
+    hit_weight,
+    light_sample_weight,
+    load3,
+    offset_origin,
+    russian_roulette,
+    store3,
+)
+
+MAX_CROSSINGS = 256  # interfaces a path may pass before it is ended (guards open meshes)
+
+
+@kernel
+def shade_surface(n, ps, prim, bu, bv, geo, mt, lt, env_light, sun_rows, cfg, L, sh, s):
+    """Shade the closest hits of paths 0..n-1 that are PATH_ACTIVE (prim -1 = escaped;
+    ps.tmax holds the hit distance): emission, next-event estimation, BSDF sampling, Russian
+    roulette. Writes new rays into ps, kills finished paths, appends shadow rays to sh from
+    index s. Returns the number of shadow rays written in all."""
+    max_bounces = cfg[CFG_MAX_BOUNCES]
+    sampling = cfg[CFG_SAMPLING]
+    cdf = light_cdf(lt)
+    for i in range(n):
+        if ps.alive[i] != PATH_ACTIVE:
+            continue
+        pid = ps.pid[i]
+        key = ps.key[i]
+        dim = ps.dim[i]
+        d = load3(ps.d, i)
+        beta = load3(ps.beta, i)
+        depth = ps.depth[i]
+        p = prim[i]
+        stack = ps.stack[i]
+
+        # --- escaped: environment and sun discs ------------------------------------------
+        if p < 0:
+            le, pdf_light = escaped_radiance(lt, env_light, sun_rows, d)
+            if max3(le) > 0.0:
+                add_weighted_radiance(L, pid, beta, le, hit_weight(ps.mis_pdf[i], pdf_light, sampling))
+            ps.alive[i] = PATH_DEAD
+            continue
+
+        # --- surface hit ---------------------------------------------------------------
+        b1 = float(bu[i])
+        b2 = float(bv[i])
+        b0 = 1.0 - b1 - b2
+        v0 = load3(geo.v0, p)
+        x = madd(madd(v0, load3(geo.e1, p), b1), load3(geo.e2, p), b2)
+        ng = load3(geo.ng, p)
+        front = dot(d, ng) < 0.0
+        m = geo.material[p]
+
+        light = geo.light[p]
+        if light >= 0:
+            le = triangle_emission(lt, light, front)
+            if max3(le) > 0.0:
+                w = 1.0
+                if ps.mis_pdf[i] > 0.0 or sampling == SAMPLING_NEE:
+                    pdf_light = triangle_light_pdf(lt, light, load3(ps.mis_o, i), x, dot(d, ng))
+                    w = hit_weight(ps.mis_pdf[i], pdf_light, sampling)
+                add_weighted_radiance(L, pid, beta, le, w)
+
+        if not bsdf_has_lobes(mt, m, front):
+            if light >= 0:
+                # A pure emitter (Cycles' Emission shader): black, opaque.
+                ps.alive[i] = PATH_DEAD
+                continue
+            # An invisible interface: cross it without scattering.
+            _cross_interface(ps, i, geo, p, front, x, ng, d, beta)
+            ps.dim[i] = dim
+            continue
+        if depth > max_bounces:
+            ps.alive[i] = PATH_DEAD
+            continue
+
+        sn = _shading_normal(geo, p, b0, b1, b2, ng)
+        ts, tt = onb(sn)
+        wo = to_local(neg(d), ts, tt, sn)
+
+        if sampling != SAMPLING_BSDF and cdf.shape[0] > 1:
+            s, dim = _surface_nee(lt, mt, m, front, x, ng, wo, ts, tt, sn, beta, sampling, pid, key, dim,
+                                  stack, sh, s)
+
+        # BSDF sampling
+        wil, w, pdf, event = bsdf_sample(mt, m, front, wo, uniform(key, dim), uniform(key, dim + 1),
+                                         uniform(key, dim + 2), uniform(key, dim + 3))
+        dim += 4
+        if event == EVENT_ABSORB or max3(w) <= 0.0:
+            ps.alive[i] = PATH_DEAD
+            continue
+        beta = mul(beta, w)
+        if event == EVENT_PASS_THROUGH:
+            _cross_interface(ps, i, geo, p, front, x, ng, d, beta)
+            ps.dim[i] = dim
+            continue
+        wi = normalize(to_world(wil, ts, tt, sn))
+        # Crossing to the other side of the geometric surface enters or leaves its medium.
+        if (dot(wi, ng) > 0.0) != front:
+            _update_stack(ps, i, geo, p, front)
+        store3(ps.beta, i, beta)
+        ps.depth[i] = depth + 1
+        # A delta lobe has no pdf to weigh emission it finds against light sampling.
+        ps.mis_pdf[i] = pdf if event == EVENT_SCATTER else 0.0
+        store3(ps.mis_o, i, x)
+        _spawn(ps, i, x, ng, wi)
+        alive, dim = russian_roulette(ps, i, key, dim, cfg[CFG_RR_DEPTH])
+        ps.alive[i] = PATH_ACTIVE if alive else PATH_DEAD
+        ps.dim[i] = dim
+    return s
+
+
+@inline_kernel
+def _surface_nee(lt, mt, m, front, x, ng, wo, ts, tt, sn, beta, sampling, pid, key, dim, stack, sh, s):
+    """Next-event estimation at surface point x: pick a light and a point on it, weigh the
+    connection by the BSDF and MIS, and write its shadow ray at index s when it carries
+    light. Returns (next shadow index, next dimension)."""
+    cdf = light_cdf(lt)
+    light = pick_light(cdf, uniform(key, dim))
+    lp = light_point(lt, light, uniform(key, dim + 1), uniform(key, dim + 2))
+    wi, dist, le, pdf, is_delta = connect_light(lt, light, lp, x, uniform(key, dim + 3),
+                                                uniform(key, dim + 4))
+    dim += 5
+    p_light = pdf * light_pmf(lt, light)
+    if p_light > 0.0 and max3(le) > 0.0:
+        wil = to_local(wi, ts, tt, sn)
+        f, pdf_bsdf = bsdf_eval(mt, m, front, wo, wil)
+        w = light_sample_weight(p_light, pdf_bsdf, is_delta, sampling)
+        c = scale(mul(mul(beta, f), le), abs(wil[2]) * w / p_light)
+        if max3(c) > 0.0:
+            xo = offset_origin(x, ng, wi)
+            ws = wi
+            if dist < RAY_FAR:
+                # Aim from the offset origin itself at the light point x + wi dist: with wi
+                # from x, the ray meets the light's plane up to ~2e-4 short of the point and
+                # the light occludes itself (measured: 97% of such shadow rays were lost).
+                # (Not lp: triangles are sampled by solid angle, lp serves only the area
+                # fallback.)
+                to = sub(madd(x, wi, dist), xo)
+                dist = math.sqrt(dot(to, to))
+                ws = scale(to, 1.0 / dist)
+                dist *= 0.9999
+            gap = max(0.0, dot(sub(xo, x), ws))
+            emit_shadow(sh, s, xo, ws, dist, c, pid, key, dim, stack, gap)
+            s += 1
+            dim += SHADOW_DIMS
+    return s, dim
+
+
+@inline_kernel
+def _shading_normal(geo, p, b0, b1, b2, ng):
+    sn0 = load3(geo.sn[p], 0)
+    sn1 = load3(geo.sn[p], 1)
+    sn2 = load3(geo.sn[p], 2)
+    n = normalize(add(add(scale(sn0, b0), scale(sn1, b1)), scale(sn2, b2)))
+    # Shading normals live on the front side of the geometric normal.
+    if dot(n, ng) < 0.0:
+        n = neg(n)
+    return n
+
+
+@inline_kernel
+def _spawn(ps, i, x, ng, direction):
+    """Next ray of path i from surface point x: origin pushed off the surface, the push
+    remembered as the gap media integrate over."""
+    o = offset_origin(x, ng, direction)
+    store3(ps.o, i, o)
+    store3(ps.d, i, direction)
+    ps.tmax[i] = RAY_FAR
+    ps.gap[i] = max(0.0, dot(sub(o, x), direction))
+
+
+@inline_kernel
+def _update_stack(ps, i, geo, p, front):
+    med = geo.medium[p]
+    if med >= 0:
+        if front:
+            stack_push(ps.stack[i], med)
+        else:
+            stack_remove(ps.stack[i], med)
+
+
+@inline_kernel
+def _cross_interface(ps, i, geo, p, front, x, ng, d, beta):
+    """Continue straight through the surface at x, entering or leaving its medium."""
+    _update_stack(ps, i, geo, p, front)
+    ps.crossings[i] += 1
+    if ps.crossings[i] > MAX_CROSSINGS:
+        ps.alive[i] = PATH_DEAD
+        return
+    store3(ps.beta, i, beta)
+    _spawn(ps, i, x, ng, d)
+    ps.alive[i] = PATH_ACTIVE
