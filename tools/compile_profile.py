@@ -20,7 +20,7 @@ import tempfile
 import time
 from pathlib import Path
 
-if "NUMBA_CACHE_DIR" not in os.environ:
+if not os.environ.get("NUMBA_CACHE_DIR"):
     os.environ["NUMBA_CACHE_DIR"] = tempfile.mkdtemp(prefix="haze-compile-profile-")
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
