@@ -25,7 +25,8 @@ import numpy as np
 
 from .materials import uses_nodes
 from .messages import Messages
-from .nodes import VALUE_HANDLERS, ShaderGraph, convert, socket_width
+from .node_values import VALUE_HANDLERS, convert, socket_width
+from .nodes import ShaderGraph
 
 STEFAN_BOLTZMANN_OVER_PI = 5.670373e-8 * 1e-6 / np.pi  # Cycles' blackbody scale (svm/closure.h)
 SURFACE_SHADERS = {
