@@ -162,18 +162,18 @@ def value_constant(graph: ValueGraph, node, socket, scope: tuple) -> np.ndarray:
 def value_group(graph: ValueGraph, node, socket, scope: tuple) -> np.ndarray | None:
     inner = graph.group_output_input(node, socket.identifier)
     if inner is None:
-        return sided(0.0, socket_width(socket.type))
+        return graph.zero(socket_width(socket.type))
     return convert(graph.input_value(inner, scope + (node,)), inner.type, socket.type)
 
 
 def value_group_input(graph: ValueGraph, node, socket, scope: tuple) -> np.ndarray:
     if not scope:
-        return sided(0.0, socket_width(socket.type))
+        return graph.zero(socket_width(socket.type))
     group_node = scope[-1]
     for candidate in group_node.inputs:
         if candidate.identifier == socket.identifier:
             return convert(graph.input_value(candidate, scope[:-1]), candidate.type, socket.type)
-    return sided(0.0, socket_width(socket.type))
+    return graph.zero(socket_width(socket.type))
 
 
 def value_geometry(graph: ValueGraph, node, socket, scope: tuple) -> np.ndarray | None:
@@ -270,7 +270,8 @@ def value_combine(graph: ValueGraph, node, socket, scope: tuple) -> np.ndarray |
         graph.warn_node(node, f"{node.mode} colour mode is not supported; the inputs it feeds use "
                               "their own values")
         return None
-    parts = [graph.input_value(s, scope) for s in node.inputs[:3]]
+    # Broadcast: in a voxel graph one input may be per voxel and another the same everywhere.
+    parts = np.broadcast_arrays(*[graph.input_value(s, scope) for s in node.inputs[:3]])
     return np.concatenate(parts, axis=1)
 
 
