@@ -10,8 +10,8 @@ import bpy
 from bpy.props import StringProperty
 from bpy_extras.io_utils import ExportHelper
 
-from . import bootstrap
 from .export.messages import ExportError
+from .export.validate import export_validated
 
 SCENE_FILE = "scene.json"
 
@@ -31,21 +31,9 @@ def target_problem(folder: Path) -> str | None:
 
 def export_to_folder(context, folder: Path) -> list[str]:
     """Export the evaluated scene into `folder`; returns the export warnings."""
-    problem = bootstrap.renderer_problem()
-    if problem:
-        raise ExportError("Haze", problem)
-    from renderer.errors import SceneError
+    exported = export_validated(context.evaluated_depsgraph_get(), render_depsgraph=False)
     from renderer.scenefile import save_scene
-    from renderer.validate import validate_scene
 
-    from .export.scene import export_scene
-    from .session import describe_scene_error
-
-    exported = export_scene(context.evaluated_depsgraph_get(), render_depsgraph=False)
-    try:
-        validate_scene(exported.scene)
-    except SceneError as error:
-        raise ExportError("Haze scene", describe_scene_error(error, exported)) from error
     save_scene(exported.scene, folder)
     return exported.warnings
 

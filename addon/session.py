@@ -19,9 +19,9 @@ import traceback
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 
-from . import bootstrap
 from .display import ResultBuffer, write_result
 from .export.messages import ExportError
+from .export.validate import export_validated
 
 PUSH_INTERVAL = 1.0  # seconds between image updates shown to the user
 MAX_DISPLAY_SHARE = 0.02  # pushes may take at most this share of the render time
@@ -94,21 +94,6 @@ def passes_without_main(frames: Iterator) -> Iterator:
         yield progress
 
 
-def describe_scene_error(error, export_result) -> str:
-    """A renderer SceneError ("meshes[3].indices: ...") phrased with the Blender object's name."""
-    path, problem = getattr(error, "path", ""), getattr(error, "problem", str(error))
-    for collection, names in (("meshes", [m.name for m in export_result.scene.meshes]),
-                              ("materials", [m.name for m in export_result.scene.materials]),
-                              ("media", [m.name for m in export_result.scene.media]),
-                              ("lights", export_result.light_names)):
-        prefix = f"{collection}["
-        if path.startswith(prefix):
-            index = int(path[len(prefix):path.index("]")])
-            if index < len(names):
-                return f"'{names[index]}' ({path}): {problem}"
-    return f"{path}: {problem}" if path else str(error)
-
-
 class RenderSession:
     """One F12 render: export, progressive rendering, display, and cleanup."""
 
@@ -150,10 +135,9 @@ class RenderSession:
             self.engine.report({"WARNING"}, f"Haze: render stopped after {samples} samples per pixel")
 
     def _render(self, result) -> None:
-        problem = bootstrap.renderer_problem()
-        if problem:
-            raise ExportError("Haze", problem)
-        exported = self._export()
+        exported = export_validated(self.depsgraph, (self.width, self.height), exporter=self._exporter,
+                                    on_start=lambda: self.engine.update_stats("", "Haze | Exporting scene"),
+                                    on_warnings=self._report_warnings)
         render_progressive = self._renderer
         if render_progressive is None:
             from renderer.render import render_progressive
@@ -165,22 +149,6 @@ class RenderSession:
             self._consume(frames, result)
         finally:
             frames.close()  # stops the renderer's workers, also on cancel or error
-
-    def _export(self):
-        from renderer.errors import SceneError
-        from renderer.scene import Film
-        from renderer.validate import validate_scene
-
-        from .export.scene import export_scene
-
-        self.engine.update_stats("", "Haze | Exporting scene")
-        exported = (self._exporter or export_scene)(self.depsgraph, Film(self.width, self.height))
-        self._report_warnings(exported.warnings)
-        try:
-            validate_scene(exported.scene)
-        except SceneError as error:
-            raise ExportError("Haze scene", describe_scene_error(error, exported)) from error
-        return exported
 
     def _workers(self) -> int:
         from .export.scene import worker_count

@@ -18,10 +18,10 @@ import pytest
 from addon.display import ResultBuffer
 from addon.export.messages import ExportError
 from addon.export.scene import ExportResult
+from addon.export.validate import describe_scene_error
 from addon.session import (
     MAX_REPORTED_WARNINGS,
     RenderSession,
-    describe_scene_error,
     format_duration,
     main_module_hidden,
     stats_text,

@@ -13,16 +13,16 @@ from addon.export.lights import area_outline, fan_triangles
 from addon.export.materials import choose_emission, close_open_sides, convert_material
 from addon.export.mesh import LocalGeometry, edge_problems, transform
 from addon.export.messages import Messages
-from addon.export.nodes import (
+from addon.export.node_closures import (
     F82_COS,
     Term,
     adjusted_specular_ior,
     conductor_as_f82,
     conductor_reflectance,
     merge_sides,
-    safe_power,
     scale_terms,
 )
+from addon.export.node_values import safe_power
 from renderer.scene import Lobe
 
 CUBE = np.array([[0, 1, 3], [0, 3, 2], [4, 6, 7], [4, 7, 5], [0, 4, 5], [0, 5, 1],

@@ -1,86 +1,108 @@
-"""Import circles among a package's modules, from the AST of every import statement.
+"""Find import circles inside Python packages of this repository.
 
-Counts module-level and function-level imports alike (a lazy import still ties two modules
-together); an edge to a package means its __init__, and `from pkg import name` an edge to
-pkg.name when that is a module. Prints each strongly connected component of more than one
-module, or "no import circles"; exits 1 if there are any.
+Every import statement counts, also those inside functions and under `if TYPE_CHECKING:`:
+a function-level import only moves a circle to run time, it does not remove it. An import
+`from package import name` is an edge to `package.name` when that is a module, else to
+`package`. Importing a module also runs its parents' __init__ files; those implied edges are
+left out (every module would otherwise form a circle with its package's __init__).
 
-    .venv/bin/python tools/import_cycles.py renderer
+Usage: .venv/bin/python tools/import_cycles.py [addon renderer ...]
+Exit status 1 when a circle is found.
 """
+
+from __future__ import annotations
+
 import ast
 import sys
 from pathlib import Path
 
-
-def module_name(root: Path, file: Path) -> str:
-    parts = list(file.relative_to(root.parent).with_suffix("").parts)
-    if parts[-1] == "__init__":
-        parts.pop()
-    return ".".join(parts)
+ROOT = Path(__file__).resolve().parents[1]
 
 
-def edges(root: Path) -> dict[str, set[str]]:
-    files = {module_name(root, f): f for f in root.rglob("*.py")}
-    graph: dict[str, set[str]] = {m: set() for m in files}
-    for mod, file in files.items():
-        package = mod if file.name == "__init__.py" else mod.rpartition(".")[0]
-        for node in ast.walk(ast.parse(file.read_text(), str(file))):
-            targets = []
-            if isinstance(node, ast.Import):
-                targets = [a.name for a in node.names]
-            elif isinstance(node, ast.ImportFrom):
-                base = node.module or ""
-                if node.level:
-                    anchor = package.split(".")[: len(package.split(".")) - node.level + 1]
-                    base = ".".join(anchor + ([base] if base else []))
-                # `from pkg import name` imports pkg.name when that is a module, else pkg.
-                targets = [f"{base}.{a.name}" if f"{base}.{a.name}" in files else base for a in node.names]
-            for t in targets:
-                while t and t not in files:
-                    t = t.rpartition(".")[0]
-                if t and t != mod:
-                    graph[mod].add(t)
-    return graph
+def module_names(package: str) -> dict[str, Path]:
+    """Dotted module name -> file, for every .py file under the package folder."""
+    modules = {}
+    for path in sorted((ROOT / package).rglob("*.py")):
+        parts = list(path.relative_to(ROOT).with_suffix("").parts)
+        if parts[-1] == "__init__":
+            parts.pop()
+        modules[".".join(parts)] = path
+    return modules
+
+
+def absolute(module: str, is_package: bool, level: int, target: str | None) -> str:
+    """The absolute name of a (possibly relative) import target seen from `module`."""
+    if level == 0:
+        return target or ""
+    base = module.split(".") if is_package else module.split(".")[:-1]
+    base = base[: len(base) - (level - 1)]
+    return ".".join(base + ([target] if target else []))
+
+
+def imports_of(module: str, path: Path, known: dict[str, Path]) -> set[str]:
+    """Modules of `known` that `module` imports anywhere in its file."""
+    is_package = path.name == "__init__.py"
+    found = set()
+    for node in ast.walk(ast.parse(path.read_text(), str(path))):
+        if isinstance(node, ast.Import):
+            found.update(alias.name for alias in node.names)
+        elif isinstance(node, ast.ImportFrom):
+            source = absolute(module, is_package, node.level, node.module)
+            for alias in node.names:
+                submodule = f"{source}.{alias.name}"
+                found.add(submodule if submodule in known else source)
+    return {name for name in found if name in known and name != module}
 
 
 def circles(graph: dict[str, set[str]]) -> list[list[str]]:
-    """Tarjan's strongly connected components of size > 1."""
-    index, low, stack, on, out = {}, {}, [], set(), []
-    counter = [0]
+    """Strongly connected components with more than one module (Tarjan's algorithm)."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on_stack: set[str] = set()
+    found: list[list[str]] = []
 
-    def visit(v):
-        index[v] = low[v] = counter[0]
-        counter[0] += 1
-        stack.append(v)
-        on.add(v)
-        for w in graph[v]:
-            if w not in index:
-                visit(w)
-                low[v] = min(low[v], low[w])
-            elif w in on:
-                low[v] = min(low[v], index[w])
-        if low[v] == index[v]:
-            comp = []
+    def visit(node: str) -> None:
+        index[node] = low[node] = len(index)
+        stack.append(node)
+        on_stack.add(node)
+        for successor in sorted(graph[node]):
+            if successor not in index:
+                visit(successor)
+                low[node] = min(low[node], low[successor])
+            elif successor in on_stack:
+                low[node] = min(low[node], index[successor])
+        if low[node] == index[node]:
+            component = []
             while True:
-                w = stack.pop()
-                on.discard(w)
-                comp.append(w)
-                if w == v:
+                member = stack.pop()
+                on_stack.discard(member)
+                component.append(member)
+                if member == node:
                     break
-            if len(comp) > 1:
-                out.append(sorted(comp))
+            if len(component) > 1:
+                found.append(sorted(component))
 
-    sys.setrecursionlimit(10000)
-    for v in graph:
-        if v not in index:
-            visit(v)
-    return out
+    for node in sorted(graph):
+        if node not in index:
+            visit(node)
+    return found
+
+
+def main(argv: list[str]) -> int:
+    packages = argv or ["addon"]
+    known: dict[str, Path] = {}
+    for package in packages:
+        known.update(module_names(package))
+    graph = {name: imports_of(name, path, known) for name, path in known.items()}
+    found = circles(graph)
+    edges = sum(len(targets) for targets in graph.values())
+    print(f"{len(known)} modules, {edges} internal imports in {', '.join(packages)}: "
+          f"{len(found)} import circle(s)")
+    for component in found:
+        print("  circle: " + ", ".join(component))
+    return 1 if found else 0
 
 
 if __name__ == "__main__":
-    root = Path(sys.argv[1] if len(sys.argv) > 1 else "renderer").resolve()
-    found = circles(edges(root))
-    for comp in found:
-        print("circle:", " <-> ".join(comp))
-    print(f"{len(found)} import circles in {root.name}/" if found else f"no import circles in {root.name}/")
-    sys.exit(1 if found else 0)
+    raise SystemExit(main(sys.argv[1:]))

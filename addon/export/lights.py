@@ -20,7 +20,7 @@ import numpy as np
 from renderer.scene import Lobe, Material, Mesh, PointLight, SpotLight, SunLight
 
 from .messages import Messages, object_subject
-from .nodes import rgb
+from .node_closures import rgb
 
 DISK_SEGMENTS = 64
 

@@ -19,7 +19,8 @@ import numpy as np
 from renderer.scene import LOBE_KINDS, Lobe, Material, Medium
 
 from .messages import Messages, material_subject
-from .nodes import VOLUME_KINDS, ShaderGraph, Term, as_volume_terms, rgb
+from .node_closures import VOLUME_KINDS, Term, as_volume_terms, rgb
+from .nodes import ShaderGraph
 
 DEFAULT_MATERIAL_NAME = "Haze Default Surface"
 MAX_ANISOTROPY = 1.0 - 1e-3  # Cycles clamps Henyey-Greenstein g to this magnitude

@@ -17,6 +17,9 @@ Attributes as Cycles reads them from a domain (rna_fluid: *_grid_get):
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+from pathlib import Path
+
 import numpy as np
 
 from .messages import Messages, object_subject
@@ -49,18 +52,46 @@ def mesh_bounds(mesh) -> tuple[np.ndarray, np.ndarray]:
     return positions.min(axis=0), positions.max(axis=0)
 
 
-def cache_file(directory: str, frame: int):
-    from pathlib import Path
-
+def cache_file(directory: str, frame: int) -> Path:
     return Path(directory) / "data" / f"fluid_data_{frame:04d}.vdb"
 
 
-def smoke_cache_source(obj, frame: int, messages: Messages, material):
-    """The VolumeSource of a gas domain at `frame`, or None (with a warning) if its cache
-    holds nothing readable for that frame."""
-    import bpy
+@dataclass(frozen=True)
+class SmokeCache:
+    """One frame of a gas domain's simulation: the cache file and where its grid sits."""
 
-    from .volumes import VolumeSource
+    path: str  # the frame's OpenVDB cache file
+    box: tuple[np.ndarray, np.ndarray]  # object-space bounds of the domain mesh, which the grid fills
+    resolution: np.ndarray  # base resolution: cells along x, y, z filling `box`
+    flame_range: tuple[float, float]  # flame ignition and maximum temperature
+    clipping: float  # voxels below this are empty
+
+    def index_to_object(self) -> np.ndarray:
+        """Index-to-object matrix of the grid: cell i centred at (i + 0.5) / res of the box."""
+        low, high = (np.asarray(v, np.float64) for v in self.box)
+        size = (high - low) / np.asarray(self.resolution, np.float64)
+        matrix = np.eye(4)
+        matrix[:3, :3] = np.diag(size)
+        matrix[:3, 3] = low + 0.5 * size
+        return matrix
+
+    def attributes(self, raw: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+        """Cache grids (keyed by the attribute they serve) converted to Cycles' attribute values."""
+        converted = dict(raw)
+        if "heat" in converted:
+            converted["heat"] = converted["heat"] * np.float32(0.5)
+        if "temperature" in converted:
+            ignition, maximum = self.flame_range
+            flame = converted["temperature"]
+            kelvin = ignition + flame * (maximum - ignition)
+            converted["temperature"] = np.where(flame > FLAME_THRESHOLD, kelvin, 0.0).astype(np.float32)
+        return converted
+
+
+def smoke_cache(obj, frame: int, messages: Messages) -> SmokeCache | None:
+    """The cache of a gas domain at `frame`, or None (with a warning) if it holds nothing
+    readable for that frame."""
+    import bpy
 
     original = obj.original
     subject = object_subject(original.name)
@@ -87,22 +118,6 @@ def smoke_cache_source(obj, frame: int, messages: Messages, material):
     if np.any(size <= 0.0):
         messages.warn(subject, "is a flat fluid domain; it is not rendered")
         return None
-    source = VolumeSource(("smoke", original.name_full, str(path), material.name_full if material else ""),
-                          subject, None, str(path), material, float(settings.clipping), dict(CACHE_GRIDS),
-                          (low, high))
-    source.domain_res = base_resolution(size, int(settings.resolution_max))
-    source.flame_range = (float(settings.flame_ignition), float(settings.flame_max_temp))
-    return source
-
-
-def smoke_attributes(raw: dict[str, np.ndarray], source) -> dict[str, np.ndarray]:
-    """Cache grids (keyed by the attribute they serve) converted to Cycles' attribute values."""
-    converted = dict(raw)
-    if "heat" in converted:
-        converted["heat"] = converted["heat"] * np.float32(0.5)
-    if "temperature" in converted:
-        ignition, maximum = source.flame_range
-        flame = converted["temperature"]
-        converted["temperature"] = np.where(flame > FLAME_THRESHOLD, ignition + flame * (maximum - ignition),
-                                            0.0).astype(np.float32)
-    return converted
+    resolution = base_resolution(size, int(settings.resolution_max))
+    flame_range = (float(settings.flame_ignition), float(settings.flame_max_temp))
+    return SmokeCache(str(path), (low, high), resolution, flame_range, float(settings.clipping))

@@ -9,7 +9,7 @@ result is therefore what Cycles renders on average, Math nodes on the density in
 
 Values are arrays of shape (n, k): n = 1 for values that are the same in every voxel, else
 one row per voxel; k = 1 for scalars and 3 for colours and vectors. The value-node handlers
-of `nodes` work unchanged on such arrays; this module adds the Attribute node (the grids)
+of `node_values` work unchanged on such arrays; this module adds the Attribute node (the grids)
 and evaluates volume closures per voxel (svm/closure.h: svm_node_closure_volume,
 svm_node_principled_volume, svm_node_volume_coefficients, svm_node_closure_emission).
 The object's volume density factor (Cycles' object_volume_density) is left out: the caller
@@ -25,7 +25,8 @@ import numpy as np
 
 from .materials import uses_nodes
 from .messages import Messages
-from .nodes import VALUE_HANDLERS, ShaderGraph, convert, socket_width
+from .node_values import VALUE_HANDLERS, socket_width
+from .nodes import ShaderGraph
 
 STEFAN_BOLTZMANN_OVER_PI = 5.670373e-8 * 1e-6 / np.pi  # Cycles' blackbody scale (svm/closure.h)
 SURFACE_SHADERS = {
@@ -192,36 +193,12 @@ def value_attribute(graph: VoxelGraph, node, socket, scope: tuple) -> np.ndarray
     return values if values.shape[1] == 3 else np.repeat(values, 3, axis=1)
 
 
-def value_combine(graph: VoxelGraph, node, socket, scope: tuple) -> np.ndarray | None:
-    if getattr(node, "mode", "RGB") != "RGB":
-        graph.warn_node(node, f"{node.mode} colour mode is not supported; the inputs it feeds use their "
-                              "own values")
-        return None
-    parts = np.broadcast_arrays(*[graph.input_value(s, scope) for s in node.inputs[:3]])
-    return np.concatenate(parts, axis=1)
-
-
 def value_geometry(graph: VoxelGraph, node, socket, scope: tuple) -> np.ndarray | None:
     if socket.identifier == "Backfacing":
         return np.zeros((1, 1))  # volume shading points face nothing
     graph.warn_node(node, f"Geometry output '{socket.name}' is not supported on volumes; the inputs it "
                           "feeds use their own values")
     return None
-
-
-def value_group(graph: VoxelGraph, node, socket, scope: tuple) -> np.ndarray:
-    inner = graph.group_output_input(node, socket.identifier)
-    if inner is None:
-        return np.zeros((1, socket_width(socket.type)))
-    return convert(graph.input_value(inner, scope + (node,)), inner.type, socket.type)
-
-
-def value_group_input(graph: VoxelGraph, node, socket, scope: tuple) -> np.ndarray:
-    if scope:
-        for candidate in scope[-1].inputs:
-            if candidate.identifier == socket.identifier:
-                return convert(graph.input_value(candidate, scope[:-1]), candidate.type, socket.type)
-    return np.zeros((1, socket_width(socket.type)))
 
 
 def value_color_ramp(graph: VoxelGraph, node, socket, scope: tuple) -> np.ndarray:
@@ -247,11 +224,7 @@ def value_color_ramp(graph: VoxelGraph, node, socket, scope: tuple) -> np.ndarra
 
 VOXEL_HANDLERS: dict[str, Callable] = {
     "ShaderNodeAttribute": value_attribute,
-    "ShaderNodeCombineColor": value_combine,
-    "ShaderNodeCombineXYZ": value_combine,
     "ShaderNodeNewGeometry": value_geometry,
-    "ShaderNodeGroup": value_group,
-    "NodeGroupInput": value_group_input,
     "ShaderNodeValToRGB": value_color_ramp,
 }
 

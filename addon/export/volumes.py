@@ -41,6 +41,7 @@ from .grid_fields import FieldBuilder, GridMedium, clean_grid, crop_to_voxels, e
 from .grid_sampler import GridInfo, GridSampler, VolumeInfo, index_box
 from .materials import MaterialLibrary
 from .messages import Messages, material_subject, object_subject
+from .smoke import CACHE_GRIDS, SmokeCache, smoke_cache
 from .volume_shader import VoxelCoefficients, evaluate_volume_material, grids_a_material_reads
 
 INTERFACE_MATERIAL = "Haze Volume Boundary"
@@ -106,20 +107,18 @@ def object_density_factor(matrix: np.ndarray, space: str) -> float:
 # ---------------------------------------------------------------------------- Blender side
 
 
-@dataclass
+@dataclass(frozen=True)
 class VolumeSource:
-    """Where a rendered volume's grids come from and how its material reads them."""
+    """Where a rendered volume's grids come from and how its material reads them: a volume
+    object to sample (`target`) or a smoke domain's cache file (`smoke`)."""
 
     key: tuple  # instances with equal keys share one GridMedium
     subject: str  # the Blender object, for messages
-    target: object | None  # original volume object to sample, or None (read from `cache_file`)
-    cache_file: str | None  # smoke domains: the frame's OpenVDB cache file
     material: object | None
     clipping: float
+    target: object | None = None  # the original volume object
+    smoke: SmokeCache | None = None
     grid_names: dict[str, str] = field(default_factory=dict)  # material attribute -> grid in the volume
-    domain_box: tuple[np.ndarray, np.ndarray] | None = None  # smoke: object-space box of the grid
-    domain_res: np.ndarray | None = None  # smoke: cells along x, y, z filling domain_box
-    flame_range: tuple[float, float] = (1.5, 3.0)  # smoke: flame ignition and maximum temperature
 
 
 @dataclass
@@ -190,12 +189,16 @@ class VolumeExporter:
                                    "rendered as linear")
         data_key = original.name_full if len(original.modifiers) else "data:" + original.data.name_full
         key = ("volume", data_key, material.name_full if material is not None else "")
-        return VolumeSource(key, subject, original, None, material, float(obj.data.render.clipping))
+        return VolumeSource(key, subject, material, float(obj.data.render.clipping), target=original)
 
     def _smoke_source(self, obj) -> VolumeSource | None:
-        from .smoke import smoke_cache_source
-
-        return smoke_cache_source(obj, self.frame, self.messages, first_material(obj))
+        cache = smoke_cache(obj, self.frame, self.messages)
+        if cache is None:
+            return None
+        original, material = obj.original, first_material(obj)
+        key = ("smoke", original.name_full, cache.path, material.name_full if material else "")
+        return VolumeSource(key, object_subject(original.name), material, cache.clipping, smoke=cache,
+                            grid_names=dict(CACHE_GRIDS))
 
     # ------------------------------------------------------------------ converting
     def export(self) -> tuple[list[Mesh], list[Medium]]:
@@ -244,7 +247,7 @@ class VolumeExporter:
         return None
 
     def _read_and_build(self, sampler: GridSampler, source: VolumeSource) -> GridMedium | None:
-        target = source.target if source.target is not None else sampler.file_volume(source.cache_file)
+        target = source.target if source.smoke is None else sampler.file_volume(source.smoke.path)
         info = sampler.inspect(target)
         if not info.grids:
             self.messages.warn(source.subject, "has no grids (an empty volume or a file that did not load); "
@@ -307,10 +310,8 @@ class VolumeExporter:
                 continue
             values = sampler.read(target, grid, start, shape)
             raw[attribute] = clean_grid(values, source.clipping, source.subject, grid_name, self.messages)
-        if source.cache_file is not None:
-            from .smoke import smoke_attributes
-
-            raw = smoke_attributes(raw, source)
+        if source.smoke is not None:
+            raw = source.smoke.attributes(raw)
         if not any(np.any(v) for v in raw.values()):
             names = ", ".join(f"'{wanted[a]}'" for a in raw)
             self.messages.warn(source.subject, f"grids {names} have no voxels above the clipping value "
@@ -328,8 +329,8 @@ class VolumeExporter:
             return None
         builder = FieldBuilder(source.subject, self.messages, grid_shape, raw, CROP_GRIDS)
         index_to_object = primary.index_to_object
-        if source.domain_box is not None:
-            index_to_object = smoke_index_to_object(source.domain_box, source.domain_res)
+        if source.smoke is not None:
+            index_to_object = source.smoke.index_to_object()
         medium = builder.build(fields, np.asarray(start), index_to_object, read_shape)
         if medium is None:
             self.messages.warn(source.subject, "its material gives no extinction or emission anywhere; it is "
@@ -355,15 +356,3 @@ def default_volume_coefficients(grids: dict[str, np.ndarray]) -> VoxelCoefficien
     half = np.full((1, 3), 0.5)
     scattering = half * values
     return VoxelCoefficients(scattering, half * values, np.zeros((1, 3)), [(np.zeros((1, 1)), scattering)])
-
-
-def smoke_index_to_object(box: tuple[np.ndarray, np.ndarray], resolution) -> np.ndarray:
-    """Index-to-object matrix of a smoke domain's grid: `resolution` (x, y, z) cells fill the
-    domain's box, cell i centred at (i + 0.5) / res of it."""
-    low, high = (np.asarray(v, np.float64) for v in box)
-    size = (high - low) / np.asarray(resolution, np.float64)
-    matrix = np.eye(4)
-    matrix[:3, :3] = np.diag(size)
-    matrix[:3, 3] = low + 0.5 * size
-    return matrix
-

@@ -14,7 +14,8 @@ from renderer.scene import Environment, Medium
 
 from .materials import active_output, uses_nodes, volume_medium
 from .messages import Messages
-from .nodes import ShaderGraph, as_volume_terms, rgb
+from .node_closures import as_volume_terms, rgb
+from .nodes import ShaderGraph
 
 
 def world_subject(name: str) -> str:

@@ -1,0 +1,383 @@
+"""Shader nodes to closure terms (BSDF lobes, emission, volume coefficients), with Cycles' semantics.
+
+A closure handler reads its node's inputs on one face (Inputs: plain floats and colours) and
+returns weighted terms; the graph (nodes.ShaderGraph) runs it for the front and the back
+face and merges the two lists where they agree. Mix and Add Shader combine the terms of
+their inputs. Closures Haze has no model for are rendered as a Diffuse BSDF of their Color
+input (fallback_closure, warned).
+
+CLOSURE_HANDLERS and COMBINE_HANDLERS map node type names to handlers.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, replace
+from typing import Protocol
+
+import numpy as np
+
+from .node_values import BACK, FRONT, SIDE_NAMES, ValueGraph
+
+
+@dataclass
+class Term:
+    """One weighted closure. Lobe kinds are those of renderer.scene.Lobe; the others are
+    "emission" (surface or world radiance), "scatter", "absorb" and "volume_emission"
+    (volume coefficients per unit length)."""
+
+    kind: str
+    weight: np.ndarray  # (3,) RGB
+    sides: str = "both"
+    color: tuple[float, float, float] = (1.0, 1.0, 1.0)
+    roughness: float = 0.0
+    ior: float = 1.5
+    anisotropy: float = 0.0
+    fresnel: str = "constant"  # conductors: "constant" (colour) or "f82" (F0 = colour, edge tint)
+    tint: tuple[float, float, float] = (1.0, 1.0, 1.0)
+
+    def same_closure(self, other: Term) -> bool:
+        return (
+            self.kind == other.kind
+            and self.fresnel == other.fresnel
+            and np.allclose(self.weight, other.weight, rtol=1e-6, atol=1e-9)
+            and np.allclose(self.color, other.color, rtol=1e-6, atol=1e-9)
+            and np.allclose(self.tint, other.tint, rtol=1e-6, atol=1e-9)
+            and math.isclose(self.roughness, other.roughness, abs_tol=1e-9)
+            and math.isclose(self.ior, other.ior, abs_tol=1e-9)
+            and math.isclose(self.anisotropy, other.anisotropy, abs_tol=1e-9)
+        )
+
+
+VOLUME_KINDS = {"scatter", "absorb", "volume_emission"}
+
+
+def side_terms(terms: list[Term], side: int) -> list[Term]:
+    return [replace(term, sides=SIDE_NAMES[side]) for term in terms]
+
+
+def merge_sides(front: list[Term], back: list[Term]) -> list[Term]:
+    """Terms evaluated for each face: one two-sided list when both faces agree."""
+    if len(front) == len(back) and all(f.same_closure(b) for f, b in zip(front, back)):
+        return [replace(term, sides="both") for term in front]
+    return side_terms(front, FRONT) + side_terms(back, BACK)
+
+
+def restrict_to_side(term: Term, side: str) -> Term | None:
+    """The part of `term` on faces `side`, or None if it has none there."""
+    if term.sides == "both":
+        return replace(term, sides=side)
+    return replace(term) if term.sides == side else None
+
+
+def scale_terms(terms: list[Term], factor: np.ndarray) -> list[Term]:
+    """Multiply closure weights by a sided scalar (2, 1), splitting terms whose faces differ."""
+    front, back = float(factor[FRONT, 0]), float(factor[BACK, 0])
+    scaled = []
+    for term in terms:
+        if front == back:
+            scaled.append(replace(term, weight=term.weight * front))
+            continue
+        for side, value in (("front", front), ("back", back)):
+            part = restrict_to_side(term, side)
+            if part is not None:
+                scaled.append(replace(part, weight=part.weight * value))
+    return [term for term in scaled if np.any(term.weight != 0.0)]
+
+
+# ---------------------------------------------------------------------------- the graph as handlers see it
+
+
+class ClosureGraph(ValueGraph, Protocol):
+    """What a closure handler asks of the graph that evaluates it."""
+
+    def closure(self, socket, scope: tuple = ()) -> list[Term]: ...
+
+
+class Inputs:
+    """Plain values of a node's inputs on one face (floats, or (3,) arrays for colours)."""
+
+    def __init__(self, graph: ValueGraph, node, scope: tuple, side: int) -> None:
+        self._graph, self.node, self._scope, self._side = graph, node, scope, side
+
+    def __call__(self, name: str):
+        socket = self.node.inputs[name]
+        row = self._graph.input_value(socket, self._scope)[self._side]
+        return float(row[0]) if row.shape[0] == 1 else row.copy()
+
+    def warn(self, problem: str) -> None:
+        self._graph.warn_node(self.node, problem)
+
+
+def saturate(value: float) -> float:
+    return min(max(value, 0.0), 1.0)
+
+
+# ---------------------------------------------------------------------------- shader nodes
+
+
+def combine_mix(graph: ClosureGraph, node, scope: tuple) -> list[Term]:
+    # Cycles clamps the mix factor to [0, 1].
+    factor = np.clip(graph.input_value(node.inputs[0], scope), 0.0, 1.0)
+    first = graph.closure(node.inputs[1], scope)
+    second = graph.closure(node.inputs[2], scope)
+    return scale_terms(first, 1.0 - factor) + scale_terms(second, factor)
+
+
+def combine_add(graph: ClosureGraph, node, scope: tuple) -> list[Term]:
+    return graph.closure(node.inputs[0], scope) + graph.closure(node.inputs[1], scope)
+
+
+COMBINE_HANDLERS: dict[str, Callable[[ClosureGraph, object, tuple], list[Term]]] = {
+    "ShaderNodeMixShader": combine_mix,
+    "ShaderNodeAddShader": combine_add,
+}
+
+
+def rgb(value) -> tuple[float, float, float]:
+    array = np.broadcast_to(np.asarray(value, dtype=np.float64), (3,))
+    return (float(array[0]), float(array[1]), float(array[2]))
+
+
+def reflection_kind(roughness: float) -> str:
+    # Cycles treats roughness 0 as a perfect mirror.
+    return "conductor" if roughness <= 0.0 else "rough_conductor"
+
+
+def warn_ignored_distribution(read: Inputs, node) -> None:
+    distribution = getattr(node, "distribution", "GGX")
+    if distribution not in {"GGX", "MULTI_GGX"}:
+        read.warn(f"{distribution} microfacets are rendered as GGX")
+
+
+def shader_diffuse(read: Inputs) -> list[Term]:
+    if read("Roughness") > 0.0:
+        read.warn("Roughness (Oren-Nayar) is ignored; Haze's diffuse lobe is Lambertian")
+    return [Term("diffuse", np.ones(3), color=rgb(np.maximum(read("Color"), 0.0)))]
+
+
+def shader_glossy(read: Inputs) -> list[Term]:
+    node = read.node
+    warn_ignored_distribution(read, node)
+    if read("Anisotropy") != 0.0:
+        read.warn("Anisotropy is ignored")
+    roughness = saturate(read("Roughness"))
+    return [Term(reflection_kind(roughness), np.ones(3), color=rgb(np.maximum(read("Color"), 0.0)),
+                 roughness=roughness)]
+
+
+def conductor_reflectance(cos: float, ior: np.ndarray, extinction: np.ndarray) -> np.ndarray:
+    """Unpolarised Fresnel reflectance of a conductor of complex index n + ik seen from air."""
+    n2, k2 = ior**2, extinction**2
+    cos2 = cos * cos
+    sin2 = 1.0 - cos2
+    t = n2 - k2 - sin2
+    a2b2 = np.sqrt(t * t + 4.0 * n2 * k2)
+    a = np.sqrt(np.maximum(0.5 * (a2b2 + t), 0.0))
+    r_s = (a2b2 + cos2 - 2.0 * a * cos) / np.maximum(a2b2 + cos2 + 2.0 * a * cos, 1e-300)
+    r_p = r_s * (cos2 * a2b2 + sin2 * sin2 - 2.0 * a * cos * sin2) / np.maximum(
+        cos2 * a2b2 + sin2 * sin2 + 2.0 * a * cos * sin2, 1e-300)
+    return 0.5 * (r_s + r_p)
+
+
+F82_COS = 1.0 / 7.0  # about 82 degrees, where the F82-tint curve takes its tint
+
+
+def conductor_as_f82(ior: np.ndarray, extinction: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(F0, edge tint) of the F82-tint curve through the conductor's exact reflectance at
+    normal incidence and at cos = 1/7: an approximation of Cycles' Physical Conductor."""
+    f0 = np.clip(conductor_reflectance(1.0, ior, extinction), 0.0, 1.0)
+    schlick82 = f0 + (1.0 - f0) * (1.0 - F82_COS) ** 5
+    tint = conductor_reflectance(F82_COS, ior, extinction) / schlick82
+    return f0, np.clip(tint, 0.0, 1.0)
+
+
+def shader_metallic(read: Inputs) -> list[Term]:
+    """Cycles' Metallic BSDF: the F82-tint Fresnel of Base Color and Edge Tint, or (Physical
+    Conductor) the exact Fresnel of a complex index, here fitted by an F82-tint curve."""
+    node = read.node
+    warn_ignored_distribution(read, node)
+    if read("Anisotropy") != 0.0:
+        read.warn("Anisotropy is ignored")
+    if node.fresnel_type == "PHYSICAL_CONDUCTOR":
+        f0, tint = conductor_as_f82(np.maximum(read("IOR"), 0.0), np.maximum(read("Extinction"), 0.0))
+    else:
+        f0 = np.clip(read("Base Color"), 0.0, 1.0)
+        tint = np.clip(read("Edge Tint"), 0.0, 1.0)
+    roughness = saturate(read("Roughness"))
+    return [Term(reflection_kind(roughness), np.ones(3), color=rgb(f0), roughness=roughness, fresnel="f82",
+                 tint=rgb(tint))]
+
+
+def shader_glass(read: Inputs) -> list[Term]:
+    roughness = saturate(read("Roughness"))
+    if roughness > 0.0:
+        read.warn(f"rough glass (Roughness {roughness:g}) is rendered as smooth glass")
+    ior = max(read("IOR"), 1e-5)
+    return [Term("dielectric", np.ones(3), color=rgb(np.maximum(read("Color"), 0.0)), ior=ior)]
+
+
+def shader_transparent(read: Inputs) -> list[Term]:
+    return [Term("transparent", np.ones(3), color=rgb(np.maximum(read("Color"), 0.0)))]
+
+
+def shader_emission(read: Inputs) -> list[Term]:
+    radiance = np.asarray(read("Color")) * read("Strength")
+    return [Term("emission", np.broadcast_to(radiance, (3,)).astype(np.float64))]
+
+
+def principled_ignored_inputs(read: Inputs) -> list[str]:
+    """Inputs of the Principled BSDF set to something Haze cannot render."""
+    checks = [
+        ("Coat Weight", read("Coat Weight") > 0.0),
+        ("Sheen Weight", read("Sheen Weight") > 0.0),
+        ("Subsurface Weight (rendered as diffuse)", read("Subsurface Weight") > 0.0),
+        ("Anisotropic", read("Anisotropic") > 0.0),
+        ("Thin Film Thickness", read("Thin Film Thickness") > 0.0),
+        ("Diffuse Roughness", read("Diffuse Roughness") > 0.0),
+        ("Specular Tint (of the dielectric layer; metals use it)",
+         not np.allclose(read("Specular Tint"), 1.0) and read("Metallic") < 1.0),
+    ]
+    return [name for name, ignored in checks if ignored]
+
+
+def adjusted_specular_ior(ior: float, level: float) -> float:
+    """Cycles' Specular IOR Level: scales F0 by 2 x level and converts back to an IOR."""
+    if level == 0.5:
+        return ior
+    f0 = ((ior - 1.0) / (ior + 1.0)) ** 2 * 2.0 * level
+    root = math.sqrt(min(max(f0, 0.0), 0.9999))
+    eta = (1.0 + root) / (1.0 - root)
+    return 1.0 / eta if ior < 1.0 else eta
+
+
+def shader_principled(read: Inputs) -> list[Term]:
+    """Cycles' Principled BSDF (svm/closure.h) as Haze lobes: alpha, metal (F82-tint Fresnel of
+    Base Color and Specular Tint), glass, then the dielectric specular layer over diffuse
+    (Haze's "plastic")."""
+    ignored = principled_ignored_inputs(read)
+    if ignored:
+        read.warn("ignored inputs: " + ", ".join(ignored))
+    base = np.maximum(read("Base Color"), 0.0)
+    metallic, alpha = saturate(read("Metallic")), saturate(read("Alpha"))
+    roughness, transmission = saturate(read("Roughness")), saturate(read("Transmission Weight"))
+    ior = max(read("IOR"), 1e-5)
+    terms: list[Term] = []
+    weight = 1.0
+    if alpha < 1.0:
+        terms.append(Term("transparent", np.full(3, 1.0 - alpha)))
+        weight = alpha
+    emission = np.asarray(read("Emission Color")) * read("Emission Strength")
+    if np.any(emission != 0.0):
+        terms.append(Term("emission", np.broadcast_to(emission * weight, (3,)).astype(np.float64)))
+    if metallic > 0.0:
+        terms.append(Term(reflection_kind(roughness), np.full(3, weight * metallic),
+                          color=rgb(np.minimum(base, 1.0)), roughness=roughness, fresnel="f82",
+                          tint=rgb(np.clip(read("Specular Tint"), 0.0, 1.0))))
+        weight *= 1.0 - metallic
+    if transmission > 0.0 and weight > 0.0:
+        if roughness > 0.0:
+            read.warn(f"rough transmission (Roughness {roughness:g}) is rendered as smooth glass")
+        terms.append(Term("dielectric", np.full(3, weight * transmission),
+                          color=rgb(np.sqrt(np.minimum(base, 1.0))), ior=ior))
+        weight *= 1.0 - transmission
+    if weight > 0.0:
+        eta = adjusted_specular_ior(ior, max(read("Specular IOR Level"), 0.0))
+        kind = "diffuse" if eta == 1.0 else "plastic"
+        terms.append(Term(kind, np.full(3, weight), color=rgb(base), roughness=roughness, ior=eta))
+    return terms
+
+
+def shader_background(read: Inputs) -> list[Term]:
+    radiance = np.asarray(read("Color")) * read("Strength")
+    return [Term("emission", np.broadcast_to(radiance, (3,)).astype(np.float64))]
+
+
+def warn_phase(read: Inputs) -> None:
+    phase = getattr(read.node, "phase", "HENYEY_GREENSTEIN")
+    if phase != "HENYEY_GREENSTEIN":
+        read.warn(f"{phase} phase function is rendered as Henyey-Greenstein with the node's Anisotropy")
+
+
+def shader_volume_scatter(read: Inputs) -> list[Term]:
+    warn_phase(read)
+    density = max(read("Density"), 0.0)
+    sigma_s = np.broadcast_to(np.asarray(read("Color")) * density, (3,)).astype(np.float64)
+    return [Term("scatter", sigma_s, anisotropy=read("Anisotropy"))]
+
+
+def shader_volume_absorption(read: Inputs) -> list[Term]:
+    density = max(read("Density"), 0.0)
+    sigma_a = np.maximum((1.0 - np.asarray(read("Color"))) * density, 0.0)
+    return [Term("absorb", np.broadcast_to(sigma_a, (3,)).astype(np.float64))]
+
+
+def shader_volume_coefficients(read: Inputs) -> list[Term]:
+    warn_phase(read)
+    return [
+        Term("scatter", np.maximum(read("Scatter Coefficients"), 0.0), anisotropy=read("Anisotropy")),
+        Term("absorb", np.maximum(read("Absorption Coefficients"), 0.0)),
+        Term("volume_emission", np.asarray(read("Emission Coefficients"), dtype=np.float64)),
+    ]
+
+
+def shader_principled_volume(read: Inputs) -> list[Term]:
+    """Cycles' Principled Volume for a homogeneous medium (svm_node_principled_volume)."""
+    density = max(read("Density"), 0.0)
+    color = np.asarray(read("Color"), dtype=np.float64)
+    absorption_color = np.sqrt(np.maximum(read("Absorption Color"), 0.0))
+    absorption = np.maximum(1.0 - color, 0.0) * np.maximum(1.0 - absorption_color, 0.0)
+    emission = read("Emission Strength") * np.asarray(read("Emission Color"), dtype=np.float64)
+    if read("Blackbody Intensity") > 0.0:
+        read.warn("blackbody emission is not supported on mesh volumes and is ignored")
+    terms = [
+        Term("scatter", color * density, anisotropy=read("Anisotropy")),
+        Term("absorb", absorption * density),
+    ]
+    if read("Emission Strength") > 0.0:
+        terms.append(Term("volume_emission", np.broadcast_to(emission, (3,)).astype(np.float64)))
+    return terms
+
+
+def shader_volume_emission(read: Inputs) -> list[Term]:
+    radiance = np.asarray(read("Color")) * read("Strength")
+    return [Term("volume_emission", np.broadcast_to(radiance, (3,)).astype(np.float64))]
+
+
+CLOSURE_HANDLERS: dict[str, Callable[[Inputs], list[Term]]] = {
+    "ShaderNodeBsdfPrincipled": shader_principled,
+    "ShaderNodeBsdfDiffuse": shader_diffuse,
+    "ShaderNodeBsdfGlossy": shader_glossy,
+    "ShaderNodeBsdfAnisotropic": shader_glossy,
+    "ShaderNodeBsdfMetallic": shader_metallic,
+    "ShaderNodeBsdfGlass": shader_glass,
+    "ShaderNodeBsdfTransparent": shader_transparent,
+    "ShaderNodeEmission": shader_emission,
+    "ShaderNodeBackground": shader_background,
+    "ShaderNodeVolumeScatter": shader_volume_scatter,
+    "ShaderNodeVolumeAbsorption": shader_volume_absorption,
+    "ShaderNodeVolumeCoefficients": shader_volume_coefficients,
+    "ShaderNodeVolumePrincipled": shader_principled_volume,
+}
+
+
+def as_volume_terms(terms: list[Term]) -> list[Term]:
+    """Terms reaching a Volume socket. Emission there is a volume source (per unit length)."""
+    return [replace(t, kind="volume_emission") if t.kind == "emission" else t for t in terms]
+
+
+def fallback_closure(graph: ValueGraph, node, scope: tuple) -> list[Term]:
+    """A closure Haze has no model for, rendered as a Diffuse BSDF of its Color input (warned)."""
+    graph.warn_node(
+        node,
+        f"{node.bl_label} shaders are not supported by Haze; rendered as a Diffuse BSDF of its Color",
+    )
+    if "Color" not in node.inputs:
+        return [Term("diffuse", np.ones(3), color=(0.8, 0.8, 0.8))]
+    front = Inputs(graph, node, scope, FRONT)("Color")
+    back = Inputs(graph, node, scope, BACK)("Color")
+    return merge_sides(
+        [Term("diffuse", np.ones(3), color=tuple(np.atleast_1d(front) * np.ones(3)))],
+        [Term("diffuse", np.ones(3), color=tuple(np.atleast_1d(back) * np.ones(3)))],
+    )
