@@ -12,7 +12,8 @@ interfaces and tinting it by transparent lobes, until it reaches its light or is
 import numpy as np
 
 from ..bsdfs import SIDE_BACK, SIDE_FRONT, TRANSPARENT
-from ..bsdfs.material import L_COLOR, L_KIND, L_SIDES, L_WEIGHT, bsdf_has_lobes
+from ..bsdfs.layout import L_COLOR, L_KIND, L_SIDES, L_WEIGHT, M_COUNT, M_FIRST
+from ..bsdfs.material import bsdf_has_lobes
 from ..kernels import inline_kernel, kernel
 from ..kernels.vecmath import dot, madd, max3, mul, sub
 from .config import CFG_DELTA_TR, CFG_HAS_MEDIA
@@ -110,7 +111,8 @@ def _transparency(mt, m, front):
     mats, lobes = mt
     side = SIDE_FRONT if front else SIDE_BACK
     r, g, b = 0.0, 0.0, 0.0
-    for j in range(mats[m, 0], mats[m, 0] + mats[m, 1]):
+    start = mats[m, M_FIRST]
+    for j in range(start, start + mats[m, M_COUNT]):
         if (int(lobes[j, L_SIDES]) & side) != 0 and int(lobes[j, L_KIND]) == TRANSPARENT:
             r += lobes[j, L_WEIGHT] * lobes[j, L_COLOR]
             g += lobes[j, L_WEIGHT + 1] * lobes[j, L_COLOR + 1]
