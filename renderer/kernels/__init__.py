@@ -6,6 +6,11 @@ arrays crossing the Python boundary are contiguous float32/int32 structure-of-ar
 
 from numba import njit
 
+from . import cache
+
+# Before any kernel is defined: every kernel goes to the shared, content-keyed cache.
+cache.install()
+
 # The flags of every kernel, in one place: cached machine code, numpy's error model (no
 # exceptions on division by zero), no reference counting, and fused multiply-adds (fastmath
 # "contract" only: no other fast-math assumption, so NaN/inf tests and rounding-sensitive

@@ -1,0 +1,158 @@
+"""One kernel cache per machine and user, shared by every Haze process.
+
+Numba's own cache is keyed by each source file's path and modification time, so the CLI
+run from a clone, the add-on installed as an extension and the add-on enabled from a clone
+each compiled the same kernels into a folder of their own, and a kernel whose inlined
+callees changed in another file could be loaded stale. Here every kernel of the `renderer`
+package is cached under
+
+    <root>/kernels-<build key>/<subpackage>/
+
+where the build key hashes the source of the whole package with the versions of numba,
+llvmlite and Python: any change to any kernel source (or an update of Haze or numba) gives
+a new, empty folder, and identical sources share one folder wherever they are installed.
+Numba's index also keys every entry by CPU name and features, so machines of different
+kinds sharing a home folder never load each other's code.
+
+The root is HAZE_CACHE_DIR if set, else NUMBA_CACHE_DIR if set (the user's or a test's
+choice), else the per-user cache folder (~/.cache/haze on Linux, %LOCALAPPDATA%\\haze on
+Windows, ~/Library/Caches/haze on macOS).
+
+compile_lock() serialises compiling between processes: the first process to need a kernel
+compiles it while the others wait, then load it from the cache (see renderer.warmup).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import sys
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+
+import llvmlite
+import numba
+from numba.core.caching import CacheImpl, _CacheLocator
+
+PACKAGE_DIR = Path(__file__).resolve().parents[1]  # the renderer package
+CACHE_ENV = "HAZE_CACHE_DIR"
+LOCK_NAME = "compile.lock"
+
+
+def cache_root() -> Path:
+    """Where Haze keeps its caches (every build key's folder lies below it)."""
+    for name in (CACHE_ENV, "NUMBA_CACHE_DIR"):
+        chosen = os.environ.get(name)
+        if chosen:
+            return Path(chosen)
+    if sys.platform == "win32":
+        base = os.environ.get("LOCALAPPDATA") or str(Path.home() / "AppData" / "Local")
+        return Path(base) / "haze"
+    if sys.platform == "darwin":
+        return Path.home() / "Library" / "Caches" / "haze"
+    return Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "haze"
+
+
+def build_key(package_dir: Path = PACKAGE_DIR) -> str:
+    """A short hash of every source file of the package and the compiler's versions."""
+    h = hashlib.sha256()
+    h.update(f"numba {numba.__version__} llvmlite {llvmlite.__version__} {sys.version}".encode())
+    for path in sorted(p for p in package_dir.rglob("*.py") if "__pycache__" not in p.parts):
+        h.update(path.relative_to(package_dir).as_posix().encode())
+        h.update(b"\0")
+        h.update(path.read_bytes())
+        h.update(b"\0")
+    return h.hexdigest()[:16]
+
+
+BUILD_KEY = build_key()
+
+
+def kernel_cache_dir() -> Path:
+    """This build's kernel folder."""
+    return cache_root() / f"kernels-{BUILD_KEY}"
+
+
+class HazeCacheLocator(_CacheLocator):
+    """Numba cache locator for functions defined in the renderer package (see the module)."""
+
+    def __init__(self, py_func, py_file: str):
+        self._lineno = py_func.__code__.co_firstlineno
+        relative = Path(py_file).resolve().parent.relative_to(PACKAGE_DIR)
+        self._cache_path = str(kernel_cache_dir().joinpath(*relative.parts))
+
+    def get_cache_path(self) -> str:
+        return self._cache_path
+
+    def get_source_stamp(self) -> str:
+        # The folder already names the sources; a per-file stamp would add nothing.
+        return BUILD_KEY
+
+    def get_disambiguator(self) -> str:
+        return str(self._lineno)
+
+    @classmethod
+    def from_function(cls, py_func, py_file: str):
+        try:
+            Path(py_file).resolve().relative_to(PACKAGE_DIR)
+        except (ValueError, OSError):
+            return None  # not a renderer kernel: numba's own locators decide
+        self = cls(py_func, py_file)
+        try:
+            self.ensure_cache_path()
+        except OSError:
+            return None  # an unwritable cache: numba falls back to its own locators
+        return self
+
+
+def install() -> None:
+    """Make numba place the renderer's kernels with HazeCacheLocator (before any is defined)."""
+    if HazeCacheLocator not in CacheImpl._locator_classes:
+        CacheImpl._locator_classes.insert(0, HazeCacheLocator)
+
+
+@contextmanager
+def compile_lock(poll: float = 0.2) -> Iterator[None]:
+    """Hold this build's compile lock (an OS file lock, released if the process dies)."""
+    folder = kernel_cache_dir()
+    folder.mkdir(parents=True, exist_ok=True)
+    with open(folder / LOCK_NAME, "a+b") as f:
+        _lock(f, poll)
+        try:
+            yield
+        finally:
+            _unlock(f)
+
+
+if sys.platform == "win32":
+    import msvcrt
+
+    def _lock(f, poll: float) -> None:
+        while True:
+            try:
+                f.seek(0)
+                msvcrt.locking(f.fileno(), msvcrt.LK_NBLCK, 1)
+                return
+            except OSError:
+                time.sleep(poll)
+
+    def _unlock(f) -> None:
+        f.seek(0)
+        msvcrt.locking(f.fileno(), msvcrt.LK_UNLCK, 1)
+else:
+    import fcntl
+
+    def _lock(f, poll: float) -> None:
+        fcntl.flock(f.fileno(), fcntl.LOCK_EX)
+
+    def _unlock(f) -> None:
+        fcntl.flock(f.fileno(), fcntl.LOCK_UN)
+
+
+def folder_size(folder: Path) -> int:
+    """Bytes of the files below folder (0 if it does not exist)."""
+    if not folder.exists():
+        return 0
+    return sum(p.stat().st_size for p in folder.rglob("*") if p.is_file())
