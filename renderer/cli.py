@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import os
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -51,6 +52,35 @@ def _check(args) -> str | None:
     return None
 
 
+class CompileTicker:
+    """'compiling kernels (first run only): N s' on stderr, once a second, until stopped."""
+
+    def __init__(self, interval: float = 1.0):
+        self.interval = interval
+        self._done = threading.Event()
+        self._thread: threading.Thread | None = None
+
+    def start(self, names: list[str]) -> None:
+        t0 = time.perf_counter()
+
+        def tick() -> None:
+            while True:
+                print(f"\rcompiling kernels (first run only): {time.perf_counter() - t0:.0f} s", end="",
+                      file=sys.stderr, flush=True)
+                if self._done.wait(self.interval):
+                    break
+            print(f"\rcompiled kernels in {time.perf_counter() - t0:.1f} s", file=sys.stderr, flush=True)
+
+        self._thread = threading.Thread(target=tick, daemon=True)
+        self._thread.start()
+
+    def stop(self) -> None:
+        if self._thread is not None:
+            self._done.set()
+            self._thread.join()
+            self._thread = None
+
+
 def render_command(args) -> int:
     from .imageio import write_exr, write_png
     from .render import render_progressive
@@ -72,12 +102,17 @@ def render_command(args) -> int:
         s.max_bounces = args.max_bounces
     t0 = time.perf_counter()
     last = None
+    ticker = CompileTicker()
     try:
-        for last in render_progressive(scene, workers=args.workers, target_error=args.target_error):
+        for last in render_progressive(scene, workers=args.workers, target_error=args.target_error,
+                                       on_compile=ticker.start):
+            ticker.stop()
             line = _bar(last.spp, s.spp, last.elapsed, last.error_estimate)
             print(line, end="", file=sys.stderr, flush=True)
     except KeyboardInterrupt:
         print("\ninterrupted: writing the samples so far", file=sys.stderr)
+    finally:
+        ticker.stop()
     print(file=sys.stderr)
     if last is None:
         print("error: no samples were rendered", file=sys.stderr)

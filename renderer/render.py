@@ -14,8 +14,9 @@ from __future__ import annotations
 import math
 import multiprocessing
 import os
+import sys
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from dataclasses import dataclass
 
@@ -76,10 +77,12 @@ class _Chunker:
 
 
 def render_progressive(scene: Scene, workers: int = 1, target_error: float = 0.0,
-                       validate: bool = True) -> Iterator[Progress]:
+                       validate: bool = True, on_compile: Callable[[list[str]], None] | None = None
+                       ) -> Iterator[Progress]:
     """Render `scene`, yielding after every pass. Stops at scene.integrator.spp samples,
     at scene.integrator.time_limit seconds (if > 0) or once the estimated relMSE falls
-    below target_error (if > 0)."""
+    below target_error (if > 0). on_compile(kernel names) is called when this process must
+    compile the scene's kernels first (worker processes announce it on stderr instead)."""
     t0 = time.perf_counter()
     if validate:
         _validate(scene)
@@ -88,7 +91,7 @@ def render_progressive(scene: Scene, workers: int = 1, target_error: float = 0.0
     film = Film(cs.width, cs.height)
     chunker = _Chunker(settings.spp, max(1, workers))
     if workers <= 1:
-        yield from _render_here(cs, settings, film, chunker, t0, target_error)
+        yield from _render_here(cs, settings, film, chunker, t0, target_error, on_compile)
     else:
         yield from _render_in_workers(cs, settings, film, chunker, t0, target_error, workers)
 
@@ -112,8 +115,8 @@ def _progress(film: Film, settings: IntegratorSettings, t0: float) -> Progress:
                     film)
 
 
-def _render_here(cs, settings, film, chunker, t0, target_error) -> Iterator[Progress]:
-    tracer = Tracer(cs, settings)
+def _render_here(cs, settings, film, chunker, t0, target_error, on_compile) -> Iterator[Progress]:
+    tracer = Tracer(cs, settings, on_compile)
     while True:
         chunk = chunker.take(_time_left(settings, t0))
         if chunk is None:
@@ -134,7 +137,12 @@ _worker_tracer: Tracer | None = None
 
 def _worker_init(cs: CompiledScene, settings: IntegratorSettings) -> None:
     global _worker_tracer
-    _worker_tracer = Tracer(cs, settings)
+    _worker_tracer = Tracer(cs, settings, announce_compile)
+
+
+def announce_compile(names: list[str]) -> None:
+    """What a process says before it compiles kernels (once per machine and Haze build)."""
+    print(f"haze: compiling kernels (first run only): {', '.join(names)}", file=sys.stderr, flush=True)
 
 
 def _worker_trace(start: int, k: int, seed: int):

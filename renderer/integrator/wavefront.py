@@ -3,11 +3,14 @@ the paths and one (or an interface walk) for their shadow rays; kernels do the r
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
 from ..compile import MAX_STACK, CompiledScene
 from ..film import Film
 from ..geometry import Intersector
+from ..kernels.warmup import KernelCall, warm_up
 from ..lights.table import kernel_arrays
 from ..media.layout import dda_scratch
 from ..scene import IntegratorSettings
@@ -55,7 +58,10 @@ def camera_medium_stack(cs: CompiledScene, isect: Intersector) -> np.ndarray:
 class Tracer:
     """Traces sample ranges of one compiled scene into films, batch by batch."""
 
-    def __init__(self, cs: CompiledScene, settings: IntegratorSettings):
+    def __init__(self, cs: CompiledScene, settings: IntegratorSettings,
+                 on_compile: Callable[[list[str]], None] | None = None):
+        """on_compile(kernel names) is called before this scene's kernels are compiled, when
+        the kernel cache does not have them yet (see renderer.kernels.warmup)."""
         self.cs = cs
         self.settings = settings
         self.isect = Intersector(cs.vertices, cs.indices)
@@ -71,6 +77,34 @@ class Tracer:
         self.lt = kernel_arrays(cs.lights)
         self.init_stack = camera_medium_stack(cs, self.isect)
         self.stats = {"rays": 0, "shadow_rays": 0, "embree_s": 0.0}
+        self.compile_seconds = warm_up(self.kernel_calls(), on_compile)
+
+    def kernel_calls(self) -> list[KernelCall]:
+        """Every kernel call a batch of this scene makes, with arguments of the types it
+        passes (the hits and occlusion flags Embree returns are stood in for by arrays of
+        its types): what warm_up compiles before the first batch."""
+        cs, ps, sh, lt, cfg, L = self.cs, self.ps, self.sh, self.lt, self.cfg, self.L
+        prim, bu, bv = np.full(1, -1, np.int32), np.zeros(1, np.float32), np.zeros(1, np.float32)
+        calls: list[KernelCall] = [
+            (K.start_paths, (ps, self.pixel_of_pid, cs.camera, cs.width, cs.height, 0, 0, 1, 0,
+                             self.init_stack)),
+            (K.shade_surface, (1, ps, prim, bu, bv, cs.geometry, cs.materials, lt, cs.lights.env_light,
+                               cs.lights.sun_rows, cfg, L, sh, 0)),
+            (K.compact_paths, (1, ps)),
+            (K.splat, (1, L, self.pixel_of_pid, np.zeros((1, 3), np.float64), np.zeros((1, 3), np.float64),
+                       np.zeros(1, np.int64), np.zeros(1, np.int64))),
+        ]
+        if cs.has_media:
+            calls.append((K.shade_media, (1, ps, prim, lt, self.md, cfg, L, sh, self.nb)))
+        if cs.needs_shadow_walk:
+            calls.append((K.walk_shadows, (1, sh, prim, np.zeros(1, np.float32), self.remaining, cs.geometry,
+                                           cs.materials, self.md, cfg, L)))
+            calls.append((K.compact_shadows, (1, sh, self.remaining)))
+        else:
+            calls.append((K.resolve_shadows, (1, sh, np.zeros(1, np.bool_), L)))
+            if cs.has_media:
+                calls.append((K.shadow_media, (1, sh, self.md, cfg)))
+        return calls
 
     def trace(self, film: Film, sample_base: int, spp: int, seed: int) -> None:
         """Add samples sample_base .. sample_base + spp - 1 of every pixel to film."""

@@ -1,0 +1,63 @@
+"""Compile (or load) a set of kernels before they are first called, once per machine.
+
+Numba compiles a kernel the first time it is called with new argument types. Left to
+that, two worker processes starting on a cold cache both compile everything (minutes, and
+about 2 GB each), and nothing can tell the user why the first image is late. Instead, the
+tracer lists the calls it will make (kernel and example arguments of the right types) and
+`warm_up` compiles their signatures up front: if every one is already in the cache it just
+loads them; otherwise it takes the build's compile lock (renderer.kernels.cache), so that
+one process compiles while the others wait and then load what it saved.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Sequence
+
+from numba.core.registry import CPUDispatcher
+
+from .cache import compile_lock
+
+KernelCall = tuple[CPUDispatcher, tuple]
+
+
+def signature(kernel: CPUDispatcher, args: tuple) -> tuple:
+    """The numba types `kernel` would be compiled for when called with `args`."""
+    return tuple(kernel.typeof_pyval(a) for a in args)
+
+
+def is_ready(kernel: CPUDispatcher, sig: tuple) -> bool:
+    """True if this process has the signature compiled, or the cache holds it."""
+    if sig in kernel.overloads:
+        return True
+    cache = getattr(kernel, "_cache", None)
+    try:
+        index = cache._cache_file._load_index()
+        return cache._index_key(sig, kernel.targetctx.codegen()) in index
+    except (AttributeError, OSError, EOFError, ValueError):
+        return False  # no cache or an unreadable index: compiling is the safe answer
+
+
+def missing(calls: Sequence[KernelCall]) -> list[str]:
+    """Names of the kernels among `calls` that would have to be compiled."""
+    return [k.py_func.__name__ for k, args in calls if not is_ready(k, signature(k, args))]
+
+
+def warm_up(calls: Sequence[KernelCall], on_compile: Callable[[list[str]], None] | None = None) -> float:
+    """Make every call's signature ready: load it, or compile it under the compile lock.
+    `on_compile(names)` is called first when something must be compiled. Returns the
+    seconds spent compiling (0.0 when everything was cached)."""
+    sigs = [(k, signature(k, args)) for k, args in calls]
+    cold = [k.py_func.__name__ for k, sig in sigs if not is_ready(k, sig)]
+    if not cold:
+        for k, sig in sigs:
+            k.compile(sig)
+        return 0.0
+    if on_compile is not None:
+        on_compile(cold)
+    t = time.perf_counter()
+    with compile_lock():
+        # Another process may have compiled them while we waited: compile() loads those.
+        for k, sig in sigs:
+            k.compile(sig)
+    return time.perf_counter() - t
