@@ -14,6 +14,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable, Sequence
 
+from numba.core.dispatcher import Dispatcher
 from numba.core.registry import CPUDispatcher
 
 from .cache import compile_lock
@@ -40,14 +41,16 @@ def is_ready(kernel: CPUDispatcher, sig: tuple) -> bool:
 
 def missing(calls: Sequence[KernelCall]) -> list[str]:
     """Names of the kernels among `calls` that would have to be compiled."""
-    return [k.py_func.__name__ for k, args in calls if not is_ready(k, signature(k, args))]
+    return [k.py_func.__name__ for k, args in calls
+            if isinstance(k, Dispatcher) and not is_ready(k, signature(k, args))]
 
 
 def warm_up(calls: Sequence[KernelCall], on_compile: Callable[[list[str]], None] | None = None) -> float:
     """Make every call's signature ready: load it, or compile it under the compile lock.
     `on_compile(names)` is called first when something must be compiled. Returns the
     seconds spent compiling (0.0 when everything was cached)."""
-    sigs = [(k, signature(k, args)) for k, args in calls]
+    # Stand-ins for kernels (a test's wrapper, a profiler's timer) are left to run as they are.
+    sigs = [(k, signature(k, args)) for k, args in calls if isinstance(k, Dispatcher)]
     cold = [k.py_func.__name__ for k, sig in sigs if not is_ready(k, sig)]
     if not cold:
         for k, sig in sigs:
