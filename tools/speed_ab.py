@@ -1,0 +1,49 @@
+"""One-core samples per second of the speed benchmark's scenes, for A/B runs of two builds.
+
+    cd TREE && .venv/bin/python tools/speed_ab.py [repeats]
+
+Prints one line: M samples/s (CPU time of this thread, best of `repeats` after a warm-up
+pass) for the surface Cornell box and the fog box at g 0 and 0.9, 128x128, 16 spp, the
+scenes and settings of `python -m bench speed`. Alternate the two trees' runs (A B A B ...)
+and compare the best of each: this VM's one-core speed swings by 10% from run to run.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path.cwd()))
+
+from examples.scenes import cornell_box, cornell_fog  # noqa: E402
+from renderer.compile import compile_scene  # noqa: E402
+from renderer.film import Film  # noqa: E402
+from renderer.integrator.wavefront import Tracer  # noqa: E402
+
+SIZE, SPP = 128, 16
+
+
+def samples_per_second(scene, repeats: int) -> float:
+    cs = compile_scene(scene)
+    tracer = Tracer(cs, scene.integrator)
+    tracer.trace(Film(cs.width, cs.height), 0, 1, 0)  # compile or load, warm up
+    best = float("inf")
+    for _ in range(repeats):
+        t = time.thread_time()
+        tracer.trace(Film(cs.width, cs.height), 1, SPP, 0)
+        best = min(best, time.thread_time() - t)
+    return cs.width * cs.height * SPP / best
+
+
+def main() -> int:
+    repeats = int(sys.argv[1]) if len(sys.argv) > 1 else 3
+    scenes = {"surface": cornell_box(SIZE, SPP), "fog g0": cornell_fog(SIZE, SPP, 0.0),
+              "fog g0.9": cornell_fog(SIZE, SPP, 0.9)}
+    print(" | ".join(f"{name} {samples_per_second(s, repeats) / 1e6:.3f}" for name, s in scenes.items()),
+          flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
