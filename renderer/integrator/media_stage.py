@@ -74,12 +74,19 @@ def _scatter_in_medium(ps, i, beta, depth, x, wi, pdf):
     ps.gap[i] = 0.0
 
 
+@kernel
+def _connect_light(lt, light, lp, x, u1, u2):
+    """connect_light compiled once for both of _medium_nee's places in shade_media (inlined,
+    it compiled twice there); shade_surface inlines its own copy, hot on surfaces."""
+    return connect_light(lt, light, lp, x, u1, u2)
+
+
 @inline_kernel
 def _medium_nee(ps, i, md, lt, cfg, x, d, beta, key, dim, sh, s, light, lp, weight):
     """Next-event estimation from medium point x (with path weight `weight` to reach it).
     Uses dimensions dim .. dim + MEDIUM_NEE_DIMS - 1 whether or not it emits a shadow ray
     (so the batched next-event vertex, nee_batch, keeps the same random numbers)."""
-    wi, dist, le, pdf, is_delta = connect_light(lt, light, lp, x, uniform(key, dim), uniform(key, dim + 1))
+    wi, dist, le, pdf, is_delta = _connect_light(lt, light, lp, x, uniform(key, dim), uniform(key, dim + 1))
     stack = ps.stack[i]
     p_light = pdf * light_pmf(lt, light)
     if p_light <= 0.0 or max3(le) <= 0.0:

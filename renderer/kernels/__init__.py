@@ -16,5 +16,22 @@ cache.install()
 # "contract" only: no other fast-math assumption, so NaN/inf tests and rounding-sensitive
 # formulas keep their meaning). Measured: "contract" made the fog box 3-6% faster.
 JIT_OPTIONS = {"cache": True, "error_model": "numpy", "fastmath": {"contract"}, "_nrt": False}
+#
+# Which decorator (the cold compile, issue 19). `inline_kernel` inlines at numba IR level: at
+# every call site numba translates, rewrites, re-types and SSA-converts a fresh copy of the
+# callee and of everything it inlines in turn, so a big callee reached from several places
+# costs its whole compile again at each. That was the cold compile: on the fog Cornell box
+# (tools/compile_profile.py fog, cold cache, machine loaded by other jobs) shade_media took
+# 622 s of its own, 263 s of it inlining and 165 s SSA reconstruction, of 904 s to the first
+# pass. A `kernel` is compiled once per signature and cached, and LLVM may still inline it
+# where it links the callee's module into the caller. So the large helpers of the scalar
+# medium path are plain kernels: the phase sampling and evaluation of a stack, sample_distance,
+# sample_segment, nee_vertex_on and (for shade_media) connect_light; with the surface path's
+# helpers as kernels too (a later commit, which costs surface speed) the fog box took 390 s
+# and shade_media 37 s of its own, measured at the same time as the 904 s. Still inlined: the
+# small vector, random-number and table helpers; whatever takes the path or shadow tables
+# (ps, sh: a call passes every array's fields, and _medium_nee as a call cost 50 ns, commit
+# 9706474); everything the SIMD batch loops call (LLVM must see it all to vectorise); and
+# the surface stage's light and BSDF calls, which are hot.
 kernel = njit(**JIT_OPTIONS)
 inline_kernel = njit(**JIT_OPTIONS, inline="always")  # inlined into its callers at numba IR level

@@ -7,7 +7,7 @@ tracked with null collisions against a majorant walked through coarse majorant g
 advanced dimension counter.
 """
 
-from renderer.kernels import inline_kernel
+from renderer.kernels import inline_kernel, kernel
 from renderer.kernels.rng import uniform
 from renderer.media.homogeneous import (
     beer,
@@ -22,7 +22,7 @@ from renderer.media.stack import stack_has_emission, stack_has_grid, stack_is_em
 from renderer.media.tracking import track_free_flight, track_transmittance
 
 
-@inline_kernel
+@kernel
 def sample_distance(mt, stack, o, d, tmax, throughput, key, dim, uniform_channel):
     """Free-flight sampling over [0, tmax): (t, scattered, weight3, Le3, dim).
 
@@ -45,7 +45,7 @@ def sample_distance(mt, stack, o, d, tmax, throughput, key, dim, uniform_channel
     return sample_segment(mt, stack, segment(mt, stack, tmax), tmax, p, key, dim)
 
 
-@inline_kernel
+@kernel
 def sample_segment(mt, stack, seg, tmax, p, key, dim):
     """sample_distance for a HOMOGENEOUS stack given its segment constants
     (homogeneous.segment) and channel probabilities p."""

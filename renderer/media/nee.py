@@ -18,7 +18,7 @@ nee_vertex_simd is the same vertex without branches, for the SIMD batch of homog
 segments (renderer.integrator.nee_batch).
 """
 
-from renderer.kernels import inline_kernel
+from renderer.kernels import inline_kernel, kernel
 from renderer.kernels.rng import uniform
 from renderer.media.equiangular import (
     equiangular_frame,
@@ -48,7 +48,7 @@ def nee_vertex(mt, stack, o, d, tmax, light_p, throughput, key, dim, use_equiang
                          uniform_channel)
 
 
-@inline_kernel
+@kernel
 def nee_vertex_on(seg, o, d, tmax, light_p, throughput, key, dim, use_equiangular, uniform_channel):
     """nee_vertex given the segment's constants (homogeneous.segment), so that the path's
     own free-flight sampling on the same segment can reuse them."""

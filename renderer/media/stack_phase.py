@@ -11,7 +11,7 @@ chromatic entries of different g overlap they differ, which is why sampling retu
 weight f / pdf per channel instead of assuming 1.
 """
 
-from renderer.kernels import inline_kernel
+from renderer.kernels import inline_kernel, kernel
 from renderer.kernels.vecmath import dot, luminance
 from renderer.media.grid import medium_density
 from renderer.media.stack import EMPTY, MAX_STACK
@@ -85,7 +85,7 @@ def _pick_entry(mt, stack, p, u):
     return last
 
 
-@inline_kernel
+@kernel
 def sample_phase(mt, stack, p, d, u_sel, u1, u2):
     """Scatter at world point p for propagation direction d: (wi, weight3, pdf).
 
@@ -100,13 +100,13 @@ def sample_phase(mt, stack, p, d, u_sel, u1, u2):
     return wi, (f[0] / pdf, f[1] / pdf, f[2] / pdf), pdf
 
 
-@inline_kernel
+@kernel
 def phase_eval(mt, stack, p, d, wi):
     """(f3, pdf) of scattering from propagation direction d into wi at p (for NEE / MIS)."""
     return _mixture(mt, stack, p, dot(d, wi))
 
 
-@inline_kernel
+@kernel
 def phase_pdf(mt, stack, p, d, wi):
     """Sampling pdf of sample_phase for direction wi (per steradian)."""
     return _mixture(mt, stack, p, dot(d, wi))[1]
