@@ -141,10 +141,12 @@ def shade_media(n, ps, prim, lt, md, cfg, L, sh, nb):
     max_bounces = cfg[CFG_MAX_BOUNCES]
     sampling = cfg[CFG_SAMPLING]
     uniform_channel = cfg[CFG_UNIFORM_CHANNEL] != 0
-    s = 0
+    # int64, not the literal 0: numba compiles a callee once per argument type it meets while
+    # typing, so a literal would compile _flush_nee_batch (and the SIMD batch) twice over.
+    s = np.int64(0)
     cdf = light_cdf(lt)
     batched = cfg[CFG_NEE_BATCH] != 0
-    queued = 0
+    queued = np.int64(0)
     for i in range(n):
         stack = ps.stack[i]
         if stack_is_empty(stack):
@@ -180,7 +182,7 @@ def shade_media(n, ps, prim, lt, md, cfg, L, sh, nb):
                 queued += 1
                 if queued == nee_batch.CHUNK:
                     s = _flush_nee_batch(queued, nb, ps, cfg, sh, s)
-                    queued = 0
+                    queued = np.int64(0)
                 continue
             lp = light_point(lt, light, uniform(key, dim + 1), uniform(key, dim + 2))
             dim += 3

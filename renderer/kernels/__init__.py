@@ -33,5 +33,8 @@ JIT_OPTIONS = {"cache": True, "error_model": "numpy", "fastmath": {"contract"}, 
 # (ps, sh: a call passes every array's fields, and _medium_nee as a call cost 50 ns, commit
 # 9706474); everything the SIMD batch loops call (LLVM must see it all to vectorise); and
 # the surface stage's light and BSDF calls, which are hot.
+# A kernel also compiles once per argument type it meets while its caller is typed, literal
+# constants included (Literal[int](0) and int64 are two compiles): pass int64 or bool
+# variables to a kernel, not literals.
 kernel = njit(**JIT_OPTIONS)
 inline_kernel = njit(**JIT_OPTIONS, inline="always")  # inlined into its callers at numba IR level

@@ -30,6 +30,8 @@ estimate is below RR_THRESHOLD keeps it unbiased and cheap in dense media.
 
 import math
 
+import numpy as np
+
 from renderer.kernels import fastmath as fm
 from renderer.kernels import inline_kernel, kernel
 from renderer.kernels.rng import uniform
@@ -281,7 +283,7 @@ def track_transmittance(mt, stack, o, d, t0, t1, key, dim, use_delta):
     rows = mt.scratch
     p = (THIRD, THIRD, THIRD)
     if use_delta:
-        _, collided, w, _, dim = delta_track(mt, stack, o, d, t0, t1, p, key, dim, False, rows)
+        _, collided, w, _, dim = delta_track(mt, stack, o, d, t0, t1, p, key, dim, np.bool_(False), rows)
         if collided:
             return (0.0, 0.0, 0.0), dim
         return w, dim
