@@ -35,10 +35,10 @@ from .dims import MEDIUM_NEE_DIMS, SEG_SHADOW
 from .media_api import (
     EMPTY,
     channel_probabilities,
+    grid_sample_distance,
     nee_vertex_on,
     phase_eval,
     phase_g,
-    sample_distance,
     sample_phase,
     sample_segment,
     segment,
@@ -133,11 +133,12 @@ def _flush_nee_batch(count, nb, ps, cfg, sh, s):
 
 
 @kernel
-def shade_media(n, ps, prim, lt, md, cfg, L, sh, nb):
+def shade_media(n, ps, prim, lt, md, cfg, L, sh, nb, grid_md):
     """The participating media along each live path's segment [0, hit): emission, the
     next-event vertex, free-flight sampling. A path that scatters gets its next ray here
     (PATH_SCATTERED); one that reaches the segment's end goes on to shade_surface
-    (PATH_ACTIVE). Returns the number of shadow rays written (from 0)."""
+    (PATH_ACTIVE). Returns the number of shadow rays written (from 0). grid_md: md when the
+    scene has grid media, None otherwise (then no grid tracker is compiled)."""
     max_bounces = cfg[CFG_MAX_BOUNCES]
     sampling = cfg[CFG_SAMPLING]
     uniform_channel = cfg[CFG_UNIFORM_CHANNEL] != 0
@@ -199,8 +200,8 @@ def shade_media(n, ps, prim, lt, md, cfg, L, sh, nb):
             p = channel_probabilities(beta, uniform_channel)
             t, scattered, w, le, dim = sample_segment(md, stack, seg, t_hit, p, key, dim)
         else:
-            t, scattered, w, le, dim = sample_distance(md, stack, o, d, t_hit, beta, key, dim,
-                                                       uniform_channel)
+            t, scattered, w, le, dim = grid_sample_distance(grid_md, stack, o, d, t_hit, beta, key, dim,
+                                                            uniform_channel)
         if max3(le) > 0.0:
             add_radiance(L, pid, beta, le)
         beta = mul(beta, w)

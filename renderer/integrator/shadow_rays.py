@@ -17,24 +17,28 @@ from ..bsdfs.material import bsdf_has_lobes
 from ..kernels import inline_kernel, kernel
 from ..kernels.vecmath import dot, madd, max3, mul, sub
 from .config import CFG_DELTA_TR, CFG_HAS_MEDIA
-from .media_api import stack_is_empty, stack_push, stack_remove, transmittance
+from .media_api import homogeneous_transmittance, stack_is_empty, stack_push, stack_remove, transmittance
 from .paths import load3, offset_origin, store3
 
 
 @kernel
-def shadow_media(count, sh, md, cfg):
+def shadow_media(count, sh, md, cfg, grid_md):
     """Multiply each shadow ray's contribution by the transmittance of its medium stack
     over its whole length (used when no interface can lie on a shadow ray, so the stack is
-    constant along it; otherwise walk_shadows accumulates it piece by piece)."""
+    constant along it; otherwise walk_shadows accumulates it piece by piece). grid_md: md
+    when the scene has grid media, None otherwise (then no grid tracker is compiled)."""
     use_delta = cfg[CFG_DELTA_TR] != 0
     for s in range(count):
         stack = sh.stack[s]
         if stack_is_empty(stack):
             continue
         gap = np.float64(sh.gap[s])
-        tr, dim = transmittance(md, stack, load3(sh.o, s), load3(sh.d, s), -gap, np.float64(sh.tmax[s]),
-                                sh.key[s], sh.dim[s], use_delta)
-        sh.dim[s] = dim
+        if grid_md is None:
+            tr = homogeneous_transmittance(md, stack, -gap, np.float64(sh.tmax[s]))
+        else:
+            tr, dim = transmittance(grid_md, stack, load3(sh.o, s), load3(sh.d, s), -gap,
+                                    np.float64(sh.tmax[s]), sh.key[s], sh.dim[s], use_delta)
+            sh.dim[s] = dim
         store3(sh.contrib, s, mul(load3(sh.contrib, s), tr))
 
 
@@ -50,11 +54,12 @@ def resolve_shadows(count, sh, occluded, L):
 
 
 @kernel
-def walk_shadows(count, sh, prim, thit, remaining, geo, mt, md, cfg, L):
+def walk_shadows(count, sh, prim, thit, remaining, geo, mt, md, cfg, L, grid_md):
     """One step of shadow rays that may pass interfaces. thit is the hit distance where
     prim >= 0; remaining is each ray's length left to its light. A ray that reaches its end
     adds its contribution; one that hits an opaque surface dies; one that hits an interface
-    or a transparent lobe continues past it with its medium stack updated."""
+    or a transparent lobe continues past it with its medium stack updated. grid_md: as for
+    shadow_media."""
     has_media = cfg[CFG_HAS_MEDIA] != 0
     for s in range(count):
         o = load3(sh.o, s)
@@ -64,9 +69,12 @@ def walk_shadows(count, sh, prim, thit, remaining, geo, mt, md, cfg, L):
         stack = sh.stack[s]
         c = load3(sh.contrib, s)
         if has_media and not stack_is_empty(stack):
-            tr, dim = transmittance(md, stack, o, d, -np.float64(sh.gap[s]), t_end, sh.key[s], sh.dim[s],
-                                    cfg[CFG_DELTA_TR] != 0)
-            sh.dim[s] = dim
+            if grid_md is None:
+                tr = homogeneous_transmittance(md, stack, -np.float64(sh.gap[s]), t_end)
+            else:
+                tr, dim = transmittance(grid_md, stack, o, d, -np.float64(sh.gap[s]), t_end, sh.key[s],
+                                        sh.dim[s], cfg[CFG_DELTA_TR] != 0)
+                sh.dim[s] = dim
             c = mul(c, tr)
         if max3(c) <= 0.0:
             sh.alive[s] = 0

@@ -70,6 +70,9 @@ class Tracer:
         self.sh = allocate_shadows(self.batch)
         self.nb = NeeBatch().arrays() if cs.has_media else None
         self.md = cs.media.with_scratch(dda_scratch())  # the scene's media tables + our DDA scratch
+        # The same again where the kernels may meet grid media, None when the scene has none:
+        # then they compile without the grid trackers (numba prunes branches on None).
+        self.grid_md = self.md if cs.media.has_grids else None
         self.L = np.zeros((self.batch, 3), np.float64)
         self.pixel_of_pid = np.zeros(self.batch, np.int32)
         self.remaining = np.zeros(2 * self.batch, np.float32)
@@ -125,7 +128,8 @@ class Tracer:
             self.stats["rays"] += live
             count = 0
             if cs.has_media:
-                count = K.shade_media(live, ps, prim, self.lt, self.md, self.cfg, self.L, sh, self.nb)
+                count = K.shade_media(live, ps, prim, self.lt, self.md, self.cfg, self.L, sh, self.nb,
+                                      self.grid_md)
             count = K.shade_surface(live, ps, prim, bu, bv, cs.geometry, cs.materials, self.lt,
                                     cs.lights.env_light, cs.lights.sun_rows, self.cfg, self.L, sh, count)
             if count:
@@ -138,7 +142,7 @@ class Tracer:
         self.stats["shadow_rays"] += count
         if not self.cs.needs_shadow_walk:
             if self.cs.has_media:
-                K.shadow_media(count, sh, self.md, self.cfg)
+                K.shadow_media(count, sh, self.md, self.cfg, self.grid_md)
             occluded = self.isect.occluded(sh.o[:count], sh.d[:count], sh.tmax[:count])
             K.resolve_shadows(count, sh, occluded, self.L)
             return
@@ -148,5 +152,5 @@ class Tracer:
             thit = remaining[:count].copy()
             prim, _, _ = self.isect.intersect(sh.o[:count], sh.d[:count], thit)
             K.walk_shadows(count, sh, prim, thit, remaining, self.cs.geometry, self.cs.materials,
-                           self.md, self.cfg, self.L)
+                           self.md, self.cfg, self.L, self.grid_md)
             count = K.compact_shadows(count, sh, remaining)

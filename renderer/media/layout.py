@@ -141,6 +141,11 @@ class MediaData(NamedTuple):
     grid_data: np.ndarray
     maj_data: np.ndarray
 
+    @property
+    def has_grids(self) -> bool:
+        """Whether any medium is a grid (else the integrator compiles no grid tracker)."""
+        return bool((self.index[:, I_KIND] == MEDIUM_GRID).any())
+
     def with_scratch(self, scratch: np.ndarray) -> MediaTable:
         """The kernels' argument over these tables, walking the majorant grid in `scratch`."""
         return MediaTable(self.params, self.index, self.grid_data, self.maj_data, scratch)

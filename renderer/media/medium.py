@@ -81,5 +81,24 @@ def transmittance(mt, stack, o, d, t0, t1, key, dim, use_delta):
         return (1.0, 1.0, 1.0), dim
     if stack_has_grid(mt, stack):
         return track_transmittance(mt, stack, o, d, t0, t1, key, dim, use_delta)
+    return homogeneous_transmittance(mt, stack, t0, t1), dim
+
+
+@inline_kernel
+def homogeneous_transmittance(mt, stack, t0, t1):
+    """transmittance of a stack WITHOUT grids: exp(-sigma_t (t1 - t0)), no random numbers."""
+    if stack_is_empty(stack) or not t1 > t0:
+        return (1.0, 1.0, 1.0)
     sa, ss = stack_sigma(mt, stack)
-    return beer((sa[0] + ss[0], sa[1] + ss[1], sa[2] + ss[2]), t1 - t0), dim
+    return beer((sa[0] + ss[0], sa[1] + ss[1], sa[2] + ss[2]), t1 - t0)
+
+
+@kernel
+def grid_sample_distance(grid_mt, stack, o, d, tmax, throughput, key, dim, uniform_channel):
+    """sample_distance for the integrator, with grid_mt the media table of a scene that has
+    grid media and None otherwise: then numba prunes the call (a branch on an argument's
+    None type) and compiles no tracker for the scene (the integrator calls this only for
+    stacks with grids, which such a scene never has)."""
+    if grid_mt is None:
+        return tmax, False, (1.0, 1.0, 1.0), (0.0, 0.0, 0.0), dim
+    return sample_distance(grid_mt, stack, o, d, tmax, throughput, key, dim, uniform_channel)
