@@ -216,10 +216,18 @@ def _spawn(ps, i, x, ng, direction):
 def _update_stack(ps, i, geo, p, front):
     med = geo.medium[p]
     if med >= 0:
-        if front:
-            stack_push(ps.stack[i], med)
-        else:
-            stack_remove(ps.stack[i], med)
+        _enter_or_leave(ps.stack[i], med, front)
+
+
+@kernel
+def _enter_or_leave(stack, med, front):
+    """Push medium med onto the stack (entering through the front) or remove it (leaving):
+    a call, not inlined, since shade_surface reaches it at three places and only at the
+    surfaces of medium meshes."""
+    if front:
+        stack_push(stack, med)
+    else:
+        stack_remove(stack, med)
 
 
 @inline_kernel

@@ -19,6 +19,13 @@ from renderer.media.table import phase_g, sigma_s
 from renderer.phase.hg import hg_eval, hg_sample
 
 
+@kernel
+def _density(mt, m, p):
+    """medium_density compiled once for the phase functions' four lookups (inlined, each one
+    compiled the grid lookup again); reached only by stacks of more than one entry."""
+    return medium_density(mt, m, p)
+
+
 @inline_kernel
 def _mixture(mt, stack, p, cos_theta):
     """(f3, pdf) of the stack's phase mixture at p for cos_theta = dot(d, wi)."""
@@ -33,7 +40,7 @@ def _mixture(mt, stack, p, cos_theta):
         m = stack[i]
         if m == EMPTY:
             break
-        rho = medium_density(mt, m, p)
+        rho = _density(mt, m, p)
         ss = sigma_s(mt, m)
         s = (rho * ss[0], rho * ss[1], rho * ss[2])
         v = hg_eval(phase_g(mt, m), cos_theta)
@@ -66,7 +73,7 @@ def _pick_entry(mt, stack, p, u):
         m = stack[i]
         if m == EMPTY:
             break
-        wsum += medium_density(mt, m, p) * luminance(sigma_s(mt, m))
+        wsum += _density(mt, m, p) * luminance(sigma_s(mt, m))
     if wsum <= 0.0:
         return stack[0]
     target = u * wsum
@@ -76,7 +83,7 @@ def _pick_entry(mt, stack, p, u):
         m = stack[i]
         if m == EMPTY:
             break
-        w = medium_density(mt, m, p) * luminance(sigma_s(mt, m))
+        w = _density(mt, m, p) * luminance(sigma_s(mt, m))
         if w > 0.0:
             last = m
             acc += w
