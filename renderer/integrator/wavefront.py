@@ -98,15 +98,15 @@ class Tracer:
                        np.zeros(1, np.int64), np.zeros(1, np.int64))),
         ]
         if cs.has_media:
-            calls.append((K.shade_media, (1, ps, prim, lt, self.md, cfg, L, sh, self.nb)))
+            calls.append((K.shade_media, (1, ps, prim, lt, self.md, cfg, L, sh, self.nb, self.grid_md)))
         if cs.needs_shadow_walk:
             calls.append((K.walk_shadows, (1, sh, prim, np.zeros(1, np.float32), self.remaining, cs.geometry,
-                                           cs.materials, self.md, cfg, L)))
+                                           cs.materials, self.md, cfg, L, self.grid_md)))
             calls.append((K.compact_shadows, (1, sh, self.remaining)))
         else:
             calls.append((K.resolve_shadows, (1, sh, np.zeros(1, np.bool_), L)))
             if cs.has_media:
-                calls.append((K.shadow_media, (1, sh, self.md, cfg)))
+                calls.append((K.shadow_media, (1, sh, self.md, cfg, self.grid_md)))
         return calls
 
     def trace(self, film: Film, sample_base: int, spp: int, seed: int) -> None:
