@@ -18,21 +18,20 @@ cache.install()
 JIT_OPTIONS = {"cache": True, "error_model": "numpy", "fastmath": {"contract"}, "_nrt": False}
 #
 # Which decorator (the cold compile, issue 19). `inline_kernel` inlines at numba IR level: at
-# every call site numba translates, rewrites, re-types and SSA-converts a fresh copy of the
-# callee and of everything it inlines in turn, so a big callee reached from several places
-# costs its whole compile again at each. That was the cold compile: on the fog Cornell box
-# (tools/compile_profile.py fog, cold cache, machine loaded by other jobs) shade_media took
-# 622 s of its own, 263 s of it inlining and 165 s SSA reconstruction, of 904 s to the first
-# pass. A `kernel` is compiled once per signature and cached, and LLVM may still inline it
-# where it links the callee's module into the caller. So the large helpers of the scalar
-# medium path are plain kernels: the phase sampling and evaluation of a stack, sample_distance,
-# sample_segment, nee_vertex_on and (for shade_media) connect_light; with the surface path's
-# helpers as kernels too (a later commit, which costs surface speed) the fog box took 390 s
-# and shade_media 37 s of its own, measured at the same time as the 904 s. Still inlined: the
-# small vector, random-number and table helpers; whatever takes the path or shadow tables
-# (ps, sh: a call passes every array's fields, and _medium_nee as a call cost 50 ns, commit
-# 9706474); everything the SIMD batch loops call (LLVM must see it all to vectorise); and
-# the surface stage's light and BSDF calls, which are hot.
+# every call site numba translates, re-types and SSA-converts a fresh copy of the callee and
+# of everything it inlines in turn, so a big callee reached from several places costs its
+# whole compile again at each. A `kernel` is compiled once per signature and cached, and
+# LLVM may still inline it where it links the callee's module into the caller. So the large
+# helpers of the scalar medium path are plain kernels (the phase sampling and evaluation of
+# a stack, sample_distance, sample_segment, nee_vertex_on, and shade_media's connect_light),
+# and a scene without grids passes grid_md = None so that no grid tracker is compiled.
+# Measured (tools/compile_profile.py fog, cold cache, two builds at once, one core each):
+# 415 s -> 148 s to the first pass, shade_media 240 -> 21 s of its own. Still inlined:
+# the small vector, random-number and table helpers; whatever takes the path or shadow
+# tables (ps, sh: a call passes every array's fields, and _medium_nee as a call cost 50 ns,
+# commit 9706474); everything the SIMD batch loops call (LLVM must see it all to
+# vectorise); and the surface stage's light and BSDF calls, which are hot (as kernels they
+# cut the surface stage's compile 3x but cost about 15% of the surface box's speed).
 # A kernel also compiles once per argument type it meets while its caller is typed, literal
 # constants included (Literal[int](0) and int64 are two compiles): pass int64 or bool
 # variables to a kernel, not literals.
