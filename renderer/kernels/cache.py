@@ -150,9 +150,3 @@ else:
     def _unlock(f) -> None:
         fcntl.flock(f.fileno(), fcntl.LOCK_UN)
 
-
-def folder_size(folder: Path) -> int:
-    """Bytes of the files below folder (0 if it does not exist)."""
-    if not folder.exists():
-        return 0
-    return sum(p.stat().st_size for p in folder.rglob("*") if p.is_file())

@@ -39,12 +39,6 @@ def is_ready(kernel: CPUDispatcher, sig: tuple) -> bool:
         return False  # no cache or an unreadable index: compiling is the safe answer
 
 
-def missing(calls: Sequence[KernelCall]) -> list[str]:
-    """Names of the kernels among `calls` that would have to be compiled."""
-    return [k.py_func.__name__ for k, args in calls
-            if isinstance(k, Dispatcher) and not is_ready(k, signature(k, args))]
-
-
 def warm_up(calls: Sequence[KernelCall], on_compile: Callable[[list[str]], None] | None = None) -> float:
     """Make every call's signature ready: load it, or compile it under the compile lock.
     `on_compile(names)` is called first when something must be compiled. Returns the
