@@ -41,6 +41,13 @@ def is_previous_export(folder: Path) -> bool:
 
 def target_problem(folder: Path) -> str | None:
     """Why exporting into `folder` could destroy the user's files, or None if it is safe."""
+    try:
+        return _target_problem(folder)
+    except OSError as error:  # e.g. a folder we may not list: not ours to write into
+        return f"cannot inspect '{folder}': {error.strerror or error}"
+
+
+def _target_problem(folder: Path) -> str | None:
     if folder.is_symlink():
         return f"'{folder}' is a symbolic link; choose the folder it points to instead"
     if folder.exists() and not folder.is_dir():
