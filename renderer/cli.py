@@ -101,7 +101,7 @@ def _output_place_problem(output: Path) -> str | None:
     while not ancestor.exists() and not ancestor.is_symlink() and ancestor != ancestor.parent:
         ancestor = ancestor.parent  # missing folders are created when the image is written
     if not ancestor.is_dir():
-        return f"output {output}: {ancestor} is a file, not a folder"
+        return f"output {output}: {ancestor} is not a folder"
     if not os.access(ancestor, os.W_OK | os.X_OK):
         return f"output {output}: folder {ancestor} is not writable"
     return None
@@ -255,6 +255,9 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     except OSError as e:  # e.g. the disk filled up while writing the image
         print(f"error: {e}", file=sys.stderr)
+        return 1
+    except MemoryError:  # the estimate before rendering was too low, or others took the memory
+        print("error: out of memory while rendering; try a smaller film or fewer --workers", file=sys.stderr)
         return 1
     except KeyboardInterrupt:  # while loading, or a second Ctrl-C while writing
         print("\ninterrupted", file=sys.stderr)

@@ -80,7 +80,14 @@ def write_exr(path: PathLike, rgb: np.ndarray) -> None:
         raise ValueError(f"write_exr: rgb must be float32, got {rgb.dtype} (use rgb.astype(np.float32))")
     channels = {name: np.ascontiguousarray(rgb[:, :, i]) for i, name in enumerate("RGB")}
     header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
-    _write_atomically(path, lambda temporary: OpenEXR.File(header, channels).write(str(temporary)))
+    _write_atomically(path, lambda temporary: _write_exr_file(header, channels, temporary))
+
+
+def _write_exr_file(header: dict, channels: dict, file: Path) -> None:
+    try:
+        OpenEXR.File(header, channels).write(str(file))
+    except Exception as err:  # the binding raises bare RuntimeErrors (e.g. a full disk)
+        raise OSError(f"write_exr: cannot write {file}: {err}") from err
 
 
 def read_exr(path: PathLike) -> np.ndarray:

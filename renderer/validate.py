@@ -94,6 +94,7 @@ def validate_scene(scene: Scene) -> None:
         _check_medium(medium, f"media[{i}]")
     _check_nonnegative_rgb(scene.environment.radiance, "environment.radiance")
     _check_reference(scene.medium, medium_names, "medium", "medium")
+    _check_path_growth(scene)
 
 
 def validate_medium(medium: Medium, path: str) -> None:
@@ -297,6 +298,32 @@ def _check_lobe(lobe: Lobe, path: str) -> None:
     require(fresnel_ok, f"{path}.fresnel", f"{lobe.fresnel!r} applies to conductors only, not {lobe.kind!r}")
     tint_ok = len(lobe.tint) == 3 and 0.0 <= min(lobe.tint) and max(lobe.tint) <= 1.0
     require(tint_ok, f"{path}.tint", f"must be three numbers in [0, 1], got {lobe.tint}")
+
+
+def _material_albedo(material: Material) -> float:
+    """The most a bounce off `material` can multiply a path's value by: its lobes' weight x color."""
+    return sum(max(w * c for w, c in zip(lobe.weight, lobe.color)) for lobe in material.lobes)
+
+
+def _check_path_growth(scene: Scene) -> None:
+    """Paths that gain energy at every bounce must not overflow float32 by the last bounce.
+
+    Each value is bounded on its own, but a material whose weight x color exceeds 1 makes a
+    path's throughput grow geometrically: albedo ** (max_bounces + 1) times a radiance of up
+    to MAX_MAGNITUDE must stay finite, so the growth itself is held below MAX_MAGNITUDE.
+    Logarithms, because the power itself may overflow even a Python float.
+    """
+    albedos = [_material_albedo(material) for material in scene.materials]
+    if not albedos or max(albedos) <= 1.0:
+        return
+    worst = int(np.argmax(albedos))
+    bounces = scene.integrator.max_bounces + 1
+    if bounces * np.log10(albedos[worst]) > np.log10(MAX_MAGNITUDE):
+        raise SceneError(
+            f"materials[{worst}].lobes",
+            f"weight x color up to {albedos[worst]:.3g} grows a path {albedos[worst]:.3g}^{bounces} times "
+            f"over integrator.max_bounces = {bounces - 1}; must stay below {MAX_MAGNITUDE:g}",
+        )
 
 
 def _check_mesh(mesh: Mesh, path: str, material_names: set[str], medium_names: set[str]) -> None:

@@ -93,7 +93,7 @@ def test_unusable_output_places_are_refused_before_rendering(tmp_path: Path, cap
     else:
         (tmp_path / "plain").write_text("mine")
         output = tmp_path / "plain" / "deeper" / "out.exr"
-        expected = "is a file, not a folder"
+        expected = "is not a folder"
     code, err = _run_cli(capsys, str(folder), "-o", str(output))
     assert code == 2 and expected in _one_line_error(err)
     assert (tmp_path / "out.exr").is_dir() or (tmp_path / "plain").read_text() == "mine"
@@ -310,6 +310,20 @@ def _far_vertices(scene) -> None:
 def test_values_the_float32_kernels_cannot_hold_are_refused_by_name(edit, field: str) -> None:
     error = _with(edit)
     assert field in error.path and "\n" not in str(error)
+
+
+def test_materials_that_gain_energy_every_bounce_are_refused_when_paths_would_overflow() -> None:
+    # weight and color of 1e18 each are fine alone; a path multiplies them at every bounce.
+    scene = cornell_fog(size=8, spp=1, max_bounces=3)
+    scene.materials[0].lobes[0].weight = (1e9, 1e9, 1e9)
+    scene.materials[0].lobes[0].color = (1e9, 1e9, 1e9)
+    with pytest.raises(SceneError, match=r"^materials\[0\]\.lobes: weight x color"):
+        validate_scene(scene)
+    scene.materials[0].lobes[0].weight = scene.materials[0].lobes[0].color = (2.0, 2.0, 2.0)
+    validate_scene(scene)  # 4 ** 4: fine
+    scene.integrator.max_bounces = 64
+    with pytest.raises(SceneError, match=r"max_bounces = 64"):
+        validate_scene(scene)
 
 
 def test_a_grid_whose_emission_product_overflows_is_refused() -> None:
