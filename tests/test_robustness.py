@@ -109,6 +109,32 @@ def test_a_png_haze_did_not_write_is_not_replaced_unless_asked(tmp_path: Path, c
     assert not (tmp_path / "out.exr").exists()
 
 
+def test_an_output_hard_linked_to_an_input_is_refused(tmp_path: Path, capsys) -> None:
+    folder = _scene_folder(tmp_path)
+    array = _first_array(folder)
+    os.link(array, tmp_path / "out.exr")
+    code, err = _run_cli(capsys, str(folder), "-o", str(tmp_path / "out.exr"))
+    assert code == 2 and "input file" in _one_line_error(err)
+
+
+def _render_cli(folder: Path, output: Path, *extra: str) -> subprocess.CompletedProcess:
+    command = [sys.executable, "-m", "renderer", "render", str(folder), "-o", str(output), "--workers", "1",
+               "--spp", "1", *extra]
+    return subprocess.run(command, cwd=ROOT, capture_output=True, text=True, timeout=900)
+
+
+def test_the_png_preview_replaces_haze_pngs_and_others_only_with_overwrite(tmp_path: Path) -> None:
+    folder = _scene_folder(tmp_path)
+    output = tmp_path / "out.exr"
+    first = _render_cli(folder, output)
+    assert first.returncode == 0 and is_haze_png(output.with_suffix(".png")), first.stderr
+    again = _render_cli(folder, output)  # Haze's own preview: replaced without asking
+    assert again.returncode == 0, again.stderr
+    output.with_suffix(".png").write_bytes(b"someone's picture")
+    asked = _render_cli(folder, output, "--overwrite")
+    assert asked.returncode == 0 and is_haze_png(output.with_suffix(".png")), asked.stderr
+
+
 def test_haze_recognises_its_own_png_only(tmp_path: Path) -> None:
     image = np.full((2, 3, 3), 0.5, np.float32)
     write_png(tmp_path / "ours.png", image)
