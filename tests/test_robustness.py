@@ -452,17 +452,21 @@ def test_non_finite_time_limits_are_refused(tmp_path: Path, capsys, value: str) 
     assert "--time-limit" in capsys.readouterr().err
 
 
-def test_ctrl_c_writes_the_partial_image_and_exits_130(tmp_path: Path) -> None:
+@pytest.mark.parametrize("workers", [1, 2])
+def test_ctrl_c_writes_the_partial_image_and_exits_130(tmp_path: Path, workers: int) -> None:
     save_scene(cornell_fog(size=16, spp=1_000_000), tmp_path / "scene")
     out = tmp_path / "out.exr"
     log = tmp_path / "stderr.txt"
     command = [sys.executable, "-m", "renderer", "render", str(tmp_path / "scene"), "-o", str(out),
-               "--workers", "1"]
+               "--workers", str(workers)]
     with open(log, "w") as stderr:
-        process = subprocess.Popen(command, cwd=ROOT, stderr=stderr, stdout=subprocess.DEVNULL)
+        # A session of its own, so SIGINT can go to the whole process group as a terminal's
+        # Ctrl-C does (the worker processes get it too).
+        process = subprocess.Popen(command, cwd=ROOT, stderr=stderr, stdout=subprocess.DEVNULL,
+                                   start_new_session=True)
         try:
             _wait_for_progress(log, process, timeout=600)
-            process.send_signal(signal.SIGINT)
+            os.killpg(process.pid, signal.SIGINT)
             code = process.wait(timeout=60)
         finally:
             if process.poll() is None:
