@@ -45,6 +45,9 @@ GENERATOR_KEY = "generator"
 EXPORT_GENERATOR = "haze-export"
 # Real scenes nest five levels deep; far deeper JSON is an attack or a bug, not a scene.
 MAX_JSON_DEPTH = 16
+# scene.json holds no bulk data (arrays live in .npy files): a larger one is not a scene, and
+# reading it whole could exhaust memory.
+MAX_SCENE_JSON_BYTES = 64 * 1024 * 1024
 # Python refuses to convert integers of more than 4300 digits (a traceback); longer ones are
 # read as +-inf, so the field they sit in reports them as not finite (or not an integer).
 MAX_INTEGER_DIGITS = 4000
@@ -118,6 +121,9 @@ def _read_json(file: Path) -> dict:
     if not file.is_file():
         raise SceneError(SCENE_FILE, f"not found in {file.parent}")
     try:
+        size = file.stat().st_size
+        too_large = f"is {size} bytes, more than the {MAX_SCENE_JSON_BYTES} bytes a scene.json may have"
+        require(size <= MAX_SCENE_JSON_BYTES, SCENE_FILE, too_large)
         text = file.read_text(encoding="utf-8")
         data = json.loads(text, object_pairs_hook=_reject_duplicate_keys, parse_int=_parse_bounded_int)
     except SceneError:
@@ -128,6 +134,8 @@ def _read_json(file: Path) -> dict:
         raise SceneError(SCENE_FILE, f"nested deeper than {MAX_JSON_DEPTH} levels") from None
     except (OSError, ValueError) as error:
         raise SceneError(SCENE_FILE, f"cannot read: {error}") from None
+    except MemoryError:
+        raise SceneError(SCENE_FILE, "too large to read into memory") from None
     require(isinstance(data, dict), SCENE_FILE, f"must hold a JSON object, got {show(data)}")
     depth = _nesting_depth(data)
     require(depth <= MAX_JSON_DEPTH, SCENE_FILE, f"nested {depth} levels deep (at most {MAX_JSON_DEPTH})")

@@ -374,6 +374,15 @@ def test_very_deep_json_is_one_error(tmp_path: Path) -> None:
     assert "nested" in _load_error(folder).problem
 
 
+def test_a_scene_json_too_large_to_be_a_scene_is_refused_unread(tmp_path: Path, monkeypatch) -> None:
+    from renderer import scenefile
+
+    folder = _scene_folder(tmp_path)
+    monkeypatch.setattr(scenefile, "MAX_SCENE_JSON_BYTES", 100)
+    error = _load_error(folder)
+    assert error.path == "scene.json" and "a scene.json may have" in error.problem
+
+
 @pytest.mark.parametrize("digits", [500, 5000, 100000])
 @pytest.mark.parametrize(("section", "key", "field"), [
     ("integrator", "seed", "integrator.seed"),  # an integer field
