@@ -5,6 +5,7 @@ arrays crossing the Python boundary are contiguous float32/int32 structure-of-ar
 """
 
 from numba import njit
+from numba.core.registry import CPUDispatcher
 
 from . import cache
 
@@ -36,4 +37,36 @@ JIT_OPTIONS = {"cache": True, "error_model": "numpy", "fastmath": {"contract"}, 
 # constants included (Literal[int](0) and int64 are two compiles): pass int64 or bool
 # variables to a kernel, not literals.
 kernel = njit(**JIT_OPTIONS)
-inline_kernel = njit(**JIT_OPTIONS, forceinline=True)  # compiled once, inlined by LLVM at every call
+
+
+class InlineDispatcher(CPUDispatcher):
+    """A helper without the wrappers through which Python calls a numba function.
+
+    Numba builds a CPython wrapper (unboxing every argument, boxing the result) and a C
+    wrapper for every function it compiles. A helper only ever runs inlined into kernels, so
+    its wrappers were pure compile time: about a third of the fog box's cold compile. Without
+    them a direct call from Python would crash the process, so such calls (tests, tools) go
+    through a small jitted entry compiled on first use instead.
+    """
+
+    def __call__(self, *args):
+        entry = self.__dict__.get("_python_entry")
+        if entry is None:
+            entry = self.__dict__["_python_entry"] = _python_entry(self)
+        return entry(*args)
+
+
+def _python_entry(helper: InlineDispatcher):
+    def call(*args):
+        return helper(*args)
+
+    return njit(**{**JIT_OPTIONS, "cache": False})(call)  # a closure: nothing for the cache to key on
+
+
+def inline_kernel(func):
+    """Compiled once per argument types, inlined by LLVM at every call (see above)."""
+    options = {k: v for k, v in JIT_OPTIONS.items() if k != "cache"}
+    options.update(nopython=True, forceinline=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)
+    helper = InlineDispatcher(py_func=func, locals={}, targetoptions=options)
+    helper.enable_caching()
+    return helper
