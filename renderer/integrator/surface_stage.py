@@ -27,13 +27,13 @@ from ..kernels.vecmath import add, dot, madd, max3, mul, neg, normalize, onb, sc
 from ..lights.sample import (
     connect_light,
     escaped_radiance,
-    light_cdf,
     light_pmf,
     light_point,
     pick_light,
     triangle_emission,
     triangle_light_pdf,
 )
+from ..lights.table import LT_CDF
 from .config import CFG_MAX_BOUNCES, CFG_RR_DEPTH, CFG_SAMPLING, SAMPLING_BSDF, SAMPLING_NEE
 from .dims import SHADOW_DIMS
 from .media_api import stack_push, stack_remove
@@ -62,7 +62,7 @@ def shade_surface(n, ps, prim, bu, bv, geo, mt, lt, env_light, sun_rows, cfg, L,
     index s. Returns the number of shadow rays written in all."""
     max_bounces = cfg[CFG_MAX_BOUNCES]
     sampling = cfg[CFG_SAMPLING]
-    cdf = light_cdf(lt)
+    cdf = lt[LT_CDF]  # what pick_light searches: L + 1 entries
     for i in range(n):
         if ps.alive[i] != PATH_ACTIVE:
             continue
@@ -157,7 +157,7 @@ def _surface_nee(lt, mt, m, front, x, ng, wo, ts, tt, sn, beta, sampling, pid, k
     """Next-event estimation at surface point x: pick a light and a point on it, weigh the
     connection by the BSDF and MIS, and write its shadow ray at index s when it carries
     light. Returns (next shadow index, next dimension)."""
-    cdf = light_cdf(lt)
+    cdf = lt[LT_CDF]  # what pick_light searches: L + 1 entries
     light = pick_light(cdf, uniform(key, dim))
     lp = light_point(lt, light, uniform(key, dim + 1), uniform(key, dim + 2))
     wi, dist, le, pdf, is_delta = connect_light(lt, light, lp, x, uniform(key, dim + 3),
