@@ -1,0 +1,143 @@
+"""The background compile at enable, its state in the preferences, and Clear Kernel Cache.
+
+Blender runs in a subprocess with private HOME / BLENDER_USER_RESOURCES and a private
+HAZE_CACHE_DIR holding fake kernel folders. The background compile's command is replaced
+by small stand-ins (one that keeps "compiling", one that succeeds, one that fails), so no
+kernel is compiled: these tests are about the add-on's bookkeeping, not numba.
+"""
+
+from __future__ import annotations
+
+import pytest
+from bpy_helpers import run_blender
+
+pytestmark = [pytest.mark.bpy]
+
+BODY = r'''
+import subprocess, time
+import bpy
+import addon.background as B
+from addon import kernel_cache
+
+ROOT = os.environ["HAZE_CACHE_DIR"]
+
+
+def stand_in(code):
+    B.command = lambda: [sys.executable, "-c", code]
+
+
+def wait_for(kind, seconds=30.0):
+    end = time.monotonic() + seconds
+    while time.monotonic() < end and B.state().kind != kind:
+        time.sleep(0.1)
+    return B.state().kind
+
+
+def clear():
+    try:
+        return sorted(bpy.ops.haze.clear_kernel_cache())
+    except RuntimeError as error:  # the operator's ERROR report
+        return str(error)
+
+
+def listing():
+    return sorted(os.listdir(ROOT))
+
+
+def main():
+    out = {}
+    stand_in("import time; print('compiling kernels (first run only): shade_media', flush=True); "
+             "time.sleep(120)")
+    import addon
+    addon.register()  # starts the stand-in compile
+    job = B._job
+    out["registered_kind"] = B.state().kind
+    out["compiling_kind"] = wait_for("compiling")
+    out["compiling_text"] = kernel_cache.state_text(B.state())
+    out["second_start_same_job"] = B.start() is job
+    out["refused"] = clear()
+    out["after_refusal"] = listing()
+    out["cache_text"] = kernel_cache.cache_text(__import__("pathlib").Path(ROOT))
+
+    addon.unregister()  # stops the background compile
+    out["stopped_returncode"] = job.process.poll()
+    out["stopped_kind"] = B.state().kind
+
+    stand_in("print('kernels ready (0.1 s)')")
+    addon.register()
+    out["numba_imported_by_register"] = "numba" in sys.modules
+    out["ready_kind"] = wait_for("ready")
+    out["ready_text"] = kernel_cache.state_text(B.state())
+    out["cleared"] = clear()
+    out["after_clear"] = listing()
+    out["other_files_kept"] = open(os.path.join(ROOT, "notes.txt")).read()
+    out["linked_target_kept"] = sorted(os.listdir(os.environ["HAZE_OUTSIDE"]))
+
+    stand_in("import sys; print('numba exploded'); sys.exit(1)")
+    B.start()
+    out["failed_kind"] = wait_for("failed")
+    out["failed_log"] = [str(B.state().log), open(B.state().log).read()]
+    addon.unregister()
+    return out
+'''
+
+
+@pytest.fixture(scope="module")
+def prefs_run(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("prefs")
+    root = tmp / "cache"
+    outside = tmp / "outside"
+    for folder in (root / "kernels-aaaa" / "media", root / "kernels-bbbb", root / "not-haze", outside):
+        folder.mkdir(parents=True)
+    (root / "kernels-aaaa" / "media" / "shade_media.nbc").write_bytes(b"x" * 3_000_000)
+    (root / "kernels-bbbb" / "index.nbi").write_bytes(b"x" * 1000)
+    (root / "notes.txt").write_text("mine")
+    (outside / "precious.txt").write_text("not Haze's")
+    (root / "kernels-link").symlink_to(outside, target_is_directory=True)
+    run = run_blender(BODY, tmp / "run", timeout=300,
+                      env={"HAZE_CACHE_DIR": str(root), "HAZE_BACKGROUND_COMPILE": "1",
+                           "HAZE_OUTSIDE": str(outside)})
+    assert run.returncode == 0 and run.result, run.describe()
+    return run.result, root
+
+
+def test_enable_starts_one_background_compile_and_shows_its_state(prefs_run):
+    result, _ = prefs_run
+    assert result["registered_kind"] in {"checking", "compiling"}
+    assert result["compiling_kind"] == "compiling"
+    assert result["compiling_text"].startswith("Compiling kernels in the background")
+    assert result["second_start_same_job"]  # never a second process while one runs
+
+
+def test_clear_refuses_while_compiling(prefs_run):
+    result, _ = prefs_run
+    assert "being compiled" in result["refused"]
+    assert {"kernels-aaaa", "kernels-bbbb"} <= set(result["after_refusal"])
+    assert result["cache_text"] == "3.0 MB in 2 builds"  # the link to a foreign folder is not counted
+
+
+def test_disabling_the_addon_stops_the_background_compile(prefs_run):
+    result, _ = prefs_run
+    assert result["stopped_returncode"] is not None
+    assert result["stopped_kind"] == "stopped"
+
+
+def test_clear_deletes_only_hazes_kernel_folders(prefs_run):
+    result, root = prefs_run
+    assert result["cleared"] == ["FINISHED"]
+    assert result["after_clear"] == ["kernels-link", "not-haze", "notes.txt", "warmup.log"]
+    assert result["other_files_kept"] == "mine"
+    assert result["linked_target_kept"] == ["precious.txt"]
+
+
+def test_registering_imports_no_numba(prefs_run):
+    result, _ = prefs_run
+    assert result["numba_imported_by_register"] is False
+
+
+def test_ready_and_failed_states(prefs_run):
+    result, root = prefs_run
+    assert result["ready_kind"] == "ready" and result["ready_text"].startswith("Kernels ready")
+    assert result["failed_kind"] == "failed"
+    log, text = result["failed_log"]
+    assert log == str(root / "warmup.log") and "numba exploded" in text
