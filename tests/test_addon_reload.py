@@ -11,10 +11,12 @@ say so in the render stats; the later ones must compile nothing and say nothing.
 
 from __future__ import annotations
 
+import importlib.util
 import shutil
+from pathlib import Path
 
 import pytest
-from bpy_helpers import REPO, run_blender, shared_numba_cache
+from bpy_helpers import REPO, isolated_site, run_blender, shared_numba_cache
 
 pytestmark = [pytest.mark.bpy, pytest.mark.slow]
 
@@ -104,13 +106,18 @@ def main():
 COMPILING = "Haze | Compiling kernels (first run only)…"
 
 
+def partly_cold_cache(root: Path) -> Path:
+    """A copy of the shared warm cache without film.splat: the first F12 compiles a little."""
+    shutil.copytree(shared_numba_cache(), root, symlinks=True)
+    for index in root.glob("kernels-*/film.splat-*"):
+        index.unlink()
+    return root
+
+
 @pytest.fixture(scope="module")
 def reload_run(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("reload")
-    root = tmp / "cache"
-    shutil.copytree(shared_numba_cache(), root, symlinks=True)
-    for index in root.glob("kernels-*/film.splat-*"):
-        index.unlink()  # one small kernel to compile: the first F12 is (a little) cold
+    root = partly_cold_cache(tmp / "cache")
     addons = tmp / "run" / "blender_user" / "scripts" / "addons"
     addons.mkdir(parents=True)
     (addons / "haze").symlink_to(REPO / "addon", target_is_directory=True)
@@ -136,3 +143,68 @@ def test_disable_and_enable_then_f12_starts_warm(reload_run, render):
 
 def test_recreated_named_tuple_classes_still_match_the_cache(reload_run):
     assert reload_run["named_tuples_recreated"]  # so "reimported" above really tested that
+
+
+# The issue's own scenario: the built zip installed, two render workers. Disabling an
+# extension deletes its bundled wheels (the renderer's sources included) and enabling it
+# extracts them again with new file times; numba's own cache, keyed by source file times,
+# then took every kernel for stale. Workers say on stderr when they compile.
+EXTENSION_BODY = r'''
+import bpy
+import addon_utils
+import bpy_helpers as H
+
+
+def f12(name):
+    scene = bpy.context.scene
+    for obj in list(scene.collection.all_objects):
+        if obj.type == "MESH":
+            obj.data.materials.clear()  # the default cube, grey diffuse
+    H.configure_haze(scene, 4, 2, seed=1, workers=2)
+    scene.render.resolution_x = scene.render.resolution_y = 8
+    scene.render.resolution_percentage = 100
+    print(f"=== F12 {name}", file=sys.stderr, flush=True)
+    H.render_exr(scene, os.path.join(os.getcwd(), name + ".exr"))
+
+
+def main():
+    bpy.ops.extensions.package_install_files(filepath=ZIP, repo="user_default", enable_on_install=True)
+    name = next(m.__name__ for m in addon_utils.modules() if m.__name__.endswith(".haze"))
+    import renderer.scene
+    source = renderer.scene.__file__
+    f12("first")
+    addon_utils.disable(name, default_set=True)
+    deleted = not os.path.exists(source)
+    addon_utils.enable(name, default_set=True)
+    f12("re_enabled")
+    f12("again")
+    return {"sources_deleted_on_disable": deleted}
+'''
+
+
+def load_build_tool():
+    spec = importlib.util.spec_from_file_location("build_extension", REPO / "tools" / "build_extension.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+@pytest.fixture(scope="module")
+def extension_run(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("extension_reload")
+    built_zip = load_build_tool().main([])
+    root = partly_cold_cache(tmp / "cache")
+    body = EXTENSION_BODY.replace("ZIP,", f"{str(built_zip)!r},")
+    run = run_blender(body, tmp / "run", timeout=900, dev_paths=False, site=isolated_site(tmp),
+                      env={"HAZE_CACHE_DIR": str(root)})
+    assert run.returncode == 0 and run.result, run.describe()
+    renders = run.stderr.split("=== F12 ")[1:]
+    return run.result, {text.split()[0]: text for text in renders}
+
+
+def test_installed_extension_disabled_and_enabled_starts_warm_in_its_workers(extension_run):
+    result, stderr = extension_run
+    assert result["sources_deleted_on_disable"]  # the scenario really re-extracts the renderer
+    assert "compiling kernels (first run only): splat" in stderr["first"]
+    assert "compiling kernels" not in stderr["re_enabled"], stderr["re_enabled"]
+    assert "compiling kernels" not in stderr["again"], stderr["again"]
