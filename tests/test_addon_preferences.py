@@ -9,9 +9,9 @@ kernel is compiled: these tests are about the add-on's bookkeeping, not numba.
 from __future__ import annotations
 
 import pytest
-from bpy_helpers import run_blender
+from bpy_helpers import run_blender, shared_numba_cache
 
-pytestmark = [pytest.mark.bpy]
+pytestmark = [pytest.mark.bpy]  # the real-compile test is also marked slow
 
 BODY = r'''
 import subprocess, time
@@ -44,6 +44,35 @@ def listing():
     return sorted(os.listdir(ROOT))
 
 
+class Layout:
+    """Records what the panel draws (headless Blender draws no UI)."""
+
+    def __init__(self, lines):
+        self.lines, self.enabled = lines, True
+
+    def box(self):
+        return self
+
+    def column(self, **kwargs):
+        return self
+
+    def row(self, **kwargs):
+        return self
+
+    def label(self, text="", icon="NONE"):
+        self.lines.append(text)
+
+    def operator(self, idname, **kwargs):
+        self.lines.append(f"[{idname}{'' if self.enabled else ' disabled'}]")
+
+
+def panel():
+    from addon.preferences import HazePreferences
+    lines = []
+    HazePreferences.draw(type("Panel", (), {"layout": Layout(lines)})(), bpy.context)
+    return lines
+
+
 def main():
     out = {}
     stand_in("import time; print('compiling kernels (first run only): shade_media', flush=True); "
@@ -55,6 +84,7 @@ def main():
     out["compiling_kind"] = wait_for("compiling")
     out["compiling_text"] = kernel_cache.state_text(B.state())
     out["second_start_same_job"] = B.start() is job
+    out["panel_compiling"] = panel()
     out["refused"] = clear()
     out["after_refusal"] = listing()
     out["cache_text"] = kernel_cache.cache_text(__import__("pathlib").Path(ROOT))
@@ -68,6 +98,7 @@ def main():
     out["numba_imported_by_register"] = "numba" in sys.modules
     out["ready_kind"] = wait_for("ready")
     out["ready_text"] = kernel_cache.state_text(B.state())
+    out["panel_ready"] = panel()
     out["cleared"] = clear()
     out["after_clear"] = listing()
     out["other_files_kept"] = open(os.path.join(ROOT, "notes.txt")).read()
@@ -109,6 +140,16 @@ def test_enable_starts_one_background_compile_and_shows_its_state(prefs_run):
     assert result["second_start_same_job"]  # never a second process while one runs
 
 
+def test_preferences_panel_shows_state_log_folder_size_and_button(prefs_run):
+    result, root = prefs_run
+    state, log, folder, size, button = result["panel_compiling"]
+    assert state.startswith("Compiling kernels in the background") and log == f"Log: {root / 'warmup.log'}"
+    assert folder == f"Kernel cache: {root}" and size == "Size: 3.0 MB in 2 builds"
+    assert button == "[haze.clear_kernel_cache disabled]"  # greyed out while compiling
+    assert result["panel_ready"][0].startswith("Kernels ready")
+    assert result["panel_ready"][-1] == "[haze.clear_kernel_cache]"
+
+
 def test_clear_refuses_while_compiling(prefs_run):
     result, _ = prefs_run
     assert "being compiled" in result["refused"]
@@ -141,3 +182,36 @@ def test_ready_and_failed_states(prefs_run):
     assert result["failed_kind"] == "failed"
     log, text = result["failed_log"]
     assert log == str(root / "warmup.log") and "numba exploded" in text
+
+
+REAL_BODY = r'''
+import time
+import bpy
+import addon.background as B
+
+
+def main():
+    import addon
+    addon.register()
+    end = time.monotonic() + 900
+    while B.running() and time.monotonic() < end:
+        time.sleep(0.2)
+    state = B.state()
+    return {"kind": state.kind, "seconds": state.seconds, "log": open(state.log).read(),
+            "log_path": str(state.log)}
+'''
+
+
+@pytest.mark.slow
+def test_real_background_compile_checks_a_warm_cache_and_is_ready(tmp_path):
+    """addon/precompile.py in a child of the bpy module: found its interpreter and renderer."""
+    cache = shared_numba_cache()  # warm after the other add-on tests (else this compiles it)
+    run = run_blender(REAL_BODY, tmp_path, timeout=1000, numba_cache=cache,
+                      env={"HAZE_BACKGROUND_COMPILE": "1"})
+    assert run.returncode == 0 and run.result, run.describe()
+    assert run.result["kind"] == "ready", run.result["log"]
+    assert run.result["log_path"] == str(cache / "warmup.log")
+    log = run.result["log"]
+    for scene in ("surface box", "fog cube", "fog-filled box", "smoke ball"):
+        assert f"\n{scene}: " in log
+    assert "kernels ready" in log
