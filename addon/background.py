@@ -29,6 +29,8 @@ from . import bootstrap, precompile
 SCRIPT = Path(precompile.__file__).resolve()
 LOG_NAME = "warmup.log"
 SWITCH_ENV = "HAZE_BACKGROUND_COMPILE"
+# On Windows a console window would pop up for the child otherwise.
+NO_CONSOLE_WINDOW = getattr(subprocess, "CREATE_NO_WINDOW", 0)
 
 
 @dataclass
@@ -85,7 +87,7 @@ def start() -> Job | None:
         with open(log, "w") as out:
             process = subprocess.Popen(command(), stdout=out, stderr=subprocess.STDOUT,
                                        stdin=subprocess.DEVNULL, env=child_environment(),
-                                       cwd=str(log.parent))
+                                       cwd=str(log.parent), creationflags=NO_CONSOLE_WINDOW)
     except OSError as error:
         _job = Job(None, log, time.monotonic(), time.monotonic(), error=str(error))
         return _job
