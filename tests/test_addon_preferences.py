@@ -109,7 +109,16 @@ def main():
     out["failed_kind"] = wait_for("failed")
     out["failed_log"] = [str(B.state().log), open(B.state().log).read()]
     addon.unregister()
+
+    from addon import precompile
+    from addon.export.camera import rigid_matrix
+    exported = rigid_matrix(bpy.data.objects["Camera"].matrix_world)
+    out["camera_layouts"] = [layout(exported), layout(precompile.surface_box().camera.to_world)]
     return out
+
+
+def layout(array):
+    return "C" if array.flags["C_CONTIGUOUS"] else "F" if array.flags["F_CONTIGUOUS"] else "A"
 '''
 
 
@@ -169,6 +178,14 @@ def test_clear_deletes_only_hazes_kernel_folders(prefs_run):
     assert result["after_clear"] == ["kernels-link", "not-haze", "notes.txt", "warmup.log"]
     assert result["other_files_kept"] == "mine"
     assert result["linked_target_kept"] == ["precious.txt"]
+
+
+def test_background_compile_uses_the_exported_cameras_array_layout(prefs_run):
+    """Numba compiles the camera kernels once per array layout: the background compile must
+    use the layout F12's export gives, or the first F12 compiles them again."""
+    result, _ = prefs_run
+    exported, precompiled = result["camera_layouts"]
+    assert precompiled == exported
 
 
 def test_registering_imports_no_numba(prefs_run):
