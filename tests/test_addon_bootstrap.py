@@ -5,6 +5,7 @@ from __future__ import annotations
 import os
 import sys
 from pathlib import Path
+from types import SimpleNamespace
 
 import pytest
 
@@ -63,3 +64,18 @@ def test_folder_without_renderer_is_not_a_clone(tmp_path):
     lonely.parent.mkdir()
     lonely.write_text("")
     assert bootstrap.repository_root(str(lonely)) is None
+
+
+def test_disabling_stops_persistent_render_workers_when_the_renderer_has_them(monkeypatch):
+    import addon
+
+    calls = []
+    render = SimpleNamespace(shutdown_workers=lambda: calls.append(1))
+    monkeypatch.setitem(sys.modules, "renderer.render", render)
+    addon.stop_render_workers()
+    assert calls == [1]
+    monkeypatch.setitem(sys.modules, "renderer.render", SimpleNamespace())  # a renderer without them
+    addon.stop_render_workers()
+    monkeypatch.delitem(sys.modules, "renderer.render")  # not loaded: nothing to stop, nothing imported
+    addon.stop_render_workers()
+    assert calls == [1] and "renderer.render" not in sys.modules
