@@ -12,7 +12,11 @@ sys.executable is Blender's own Python, with the bpy module it is the venv's, an
 installed extension's renderer and numba live in folders Blender added to sys.path.
 Its output goes to `<cache root>/warmup.log`.
 
-Setting HAZE_BACKGROUND_COMPILE=0 turns the background compile off.
+Without a user interface (`blender -b`, the bpy module) it is off by default: a script
+renders right after enabling the add-on, so a background compile could not get ahead of
+that render, only take a core from it while compiling scenes the script may not use; the
+render compiles what it needs itself. HAZE_BACKGROUND_COMPILE=1 turns it on there too,
+HAZE_BACKGROUND_COMPILE=0 turns it off everywhere.
 """
 
 from __future__ import annotations
@@ -50,8 +54,12 @@ def log_path() -> Path:
     return bootstrap.haze_cache_root() / LOG_NAME
 
 
-def enabled() -> bool:
-    return os.environ.get(SWITCH_ENV, "1").strip().lower() not in {"0", "false", "no", "off"}
+def enabled(headless: bool = False) -> bool:
+    """Whether to compile in the background (headless: Blender runs without a UI)."""
+    switch = os.environ.get(SWITCH_ENV, "").strip().lower()
+    if switch in {"0", "false", "no", "off"}:
+        return False
+    return switch in {"1", "true", "yes", "on"} or not headless
 
 
 def child_environment() -> dict[str, str]:
@@ -74,10 +82,10 @@ def running() -> bool:
     return _job is not None and _job.process is not None and _job.process.poll() is None
 
 
-def start() -> Job | None:
+def start(headless: bool = False) -> Job | None:
     """Start the background compile unless it is switched off or already running."""
     global _job
-    if not enabled():
+    if not enabled(headless):
         return None
     if running():
         return _job
@@ -118,7 +126,7 @@ def log_says_compiling(log: Path) -> bool:
 
 @dataclass
 class State:
-    kind: str  # "off", "idle", "checking", "compiling", "ready", "failed", "stopped"
+    kind: str  # "idle", "checking", "compiling", "ready", "failed", "stopped"
     seconds: float  # since the start (running) or how long it ran (finished)
     log: Path
     detail: str = ""  # why it could not start
@@ -127,7 +135,7 @@ class State:
 def state() -> State:
     """What the preferences panel shows about the background compile."""
     if _job is None:
-        return State("idle" if enabled() else "off", 0.0, log_path())
+        return State("idle", 0.0, log_path())
     if _job.process is None:
         return State("failed", 0.0, _job.log, _job.error)
     code = _job.process.poll()

@@ -54,8 +54,7 @@ def state_text(state: State) -> str:
     """One line for the panel: ready, compiling for N s, failed..."""
     seconds = f"{state.seconds:.0f} s"
     texts = {
-        "off": "Background compile switched off (HAZE_BACKGROUND_COMPILE=0)",
-        "idle": "Kernels not checked yet: they compile at the first render",
+        "idle": "Kernels not compiled in the background: the first render compiles what it needs",
         "checking": f"Checking the compiled kernels… {seconds}",
         "compiling": f"Compiling kernels in the background (first run only)… {seconds}",
         "ready": f"Kernels ready (checked in {seconds})",

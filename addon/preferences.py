@@ -92,7 +92,7 @@ def unregister() -> None:
 
 def start_background_compile() -> None:
     """Start compiling the common scenes' kernels, and keep the panel's state current."""
-    if background.start() is None or bpy.app.background:
+    if background.start(headless=bpy.app.background) is None or bpy.app.background:
         return
     if not bpy.app.timers.is_registered(redraw_while_compiling):
         bpy.app.timers.register(redraw_while_compiling, first_interval=REDRAW_SECONDS)

@@ -69,8 +69,8 @@ def blender_environment(tmp: Path, numba_cache: Path | None) -> dict[str, str]:
     env = {k: v for k, v in os.environ.items() if not k.startswith(("BLENDER_", "NUMBA_", "PYTHON", "HAZE_"))}
     env.update(HOME=str(home), BLENDER_USER_RESOURCES=str(user), XDG_CACHE_HOME=str(home / ".cache"),
                XDG_CONFIG_HOME=str(home / ".config"), PYTHONUNBUFFERED="1")
-    # No background compile at add-on enable unless a test asks for it (HAZE_BACKGROUND_COMPILE=1):
-    # it would compete for the two cores with the render being timed or compiled.
+    # No background compile at add-on enable unless a test asks for it (HAZE_BACKGROUND_COMPILE=1;
+    # headless Blender has it off by default anyway): it would compete for the two cores.
     env["HAZE_BACKGROUND_COMPILE"] = "0"
     if numba_cache is not None:
         env["NUMBA_CACHE_DIR"] = str(numba_cache)

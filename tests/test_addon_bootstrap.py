@@ -79,3 +79,12 @@ def test_disabling_stops_persistent_render_workers_when_the_renderer_has_them(mo
     monkeypatch.delitem(sys.modules, "renderer.render")  # not loaded: nothing to stop, nothing imported
     addon.stop_render_workers()
     assert calls == [1] and "renderer.render" not in sys.modules
+
+
+@pytest.mark.parametrize("switch, headless, expected", [
+    ("", False, True), ("", True, False), ("1", True, True), ("0", False, False), ("off", True, False)])
+def test_background_compile_is_on_with_a_ui_unless_switched(monkeypatch, switch, headless, expected):
+    from addon import background
+
+    monkeypatch.setenv("HAZE_BACKGROUND_COMPILE", switch)
+    assert background.enabled(headless) is expected
