@@ -20,6 +20,7 @@ import os
 import sys
 import threading
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -133,8 +134,10 @@ def exit_with_parent(parent: int, poll: float = 1.0) -> None:
 
 def main() -> int:
     exit_with_parent(os.getppid())
+    import renderer
     from renderer.kernels.cache import kernel_cache_dir
 
+    print(f"renderer: {Path(renderer.__file__).parent}", flush=True)
     print(f"kernel cache: {kernel_cache_dir()}", flush=True)
     t0 = time.perf_counter()
     for name, build in SCENES.items():

@@ -9,7 +9,7 @@ kernel is compiled: these tests are about the add-on's bookkeeping, not numba.
 from __future__ import annotations
 
 import pytest
-from bpy_helpers import run_blender, shared_numba_cache
+from bpy_helpers import isolated_site, run_blender, shared_numba_cache
 
 pytestmark = [pytest.mark.bpy]  # the real-compile test is also marked slow
 
@@ -232,3 +232,38 @@ def test_real_background_compile_checks_a_warm_cache_and_is_ready(tmp_path):
     for scene in ("surface box", "fog cube", "fog-filled box", "smoke ball"):
         assert f"\n{scene}: " in log
     assert "kernels ready" in log
+
+
+EXTENSION_BODY = r'''
+import time
+import bpy
+import addon_utils
+
+
+def main():
+    bpy.ops.extensions.package_install_files(filepath=ZIP, repo="user_default", enable_on_install=True)
+    name = next(m.__name__ for m in addon_utils.modules() if m.__name__.endswith(".haze"))
+    background = sys.modules[name + ".background"]
+    end = time.monotonic() + 900
+    while background.running() and time.monotonic() < end:
+        time.sleep(0.2)
+    state = background.state()
+    return {"kind": state.kind, "log": open(state.log).read()}
+'''
+
+
+@pytest.mark.slow
+def test_installed_extensions_background_compile_uses_its_bundled_renderer(tmp_path):
+    """In Blender the child runs Blender's Python (here python -S, like the isolated install
+    test) and must find the renderer and numba in the extension's wheels."""
+    from test_addon_reload import load_build_tool
+
+    built_zip = load_build_tool().main([])
+    run = run_blender(EXTENSION_BODY.replace("ZIP,", f"{str(built_zip)!r},"), tmp_path / "run", timeout=1000,
+                      numba_cache=shared_numba_cache(), dev_paths=False, site=isolated_site(tmp_path),
+                      env={"HAZE_BACKGROUND_COMPILE": "1"})
+    assert run.returncode == 0 and run.result, run.describe()
+    assert run.result["kind"] == "ready", run.result["log"]
+    extensions = tmp_path / "run" / "blender_user" / "extensions"
+    bundled = extensions / ".local" / "lib" / "python3.11" / "site-packages"
+    assert f"renderer: {bundled / 'renderer'}" in run.result["log"]
