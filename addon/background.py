@@ -82,10 +82,11 @@ def running() -> bool:
     return _job is not None and _job.process is not None and _job.process.poll() is None
 
 
-def start(headless: bool = False) -> Job | None:
-    """Start the background compile unless it is switched off or already running."""
+def start(headless: bool = False, asked: bool = False) -> Job | None:
+    """Start the background compile unless it is switched off (asked: the user clicked for
+    it, so it runs anyway) or already running."""
     global _job
-    if not enabled(headless):
+    if not (asked or enabled(headless)):
         return None
     if running():
         return _job

@@ -43,6 +43,26 @@ class HAZE_OT_clear_kernel_cache(bpy.types.Operator):
         return ""
 
 
+class HAZE_OT_compile_kernels(bpy.types.Operator):
+    """Compile the kernels of common scenes now, in a background process"""
+
+    bl_idname = "haze.compile_kernels"
+    bl_label = "Compile Kernels"
+    bl_options = {"INTERNAL"}
+
+    def execute(self, context):
+        if background.running():
+            self.report({"INFO"}, "Haze: the kernels are already being compiled")
+            return {"CANCELLED"}
+        job = background.start(asked=True)
+        if job is None or job.process is None:
+            detail = job.error if job is not None else "not started"
+            self.report({"ERROR"}, f"Compile Kernels: {detail}")
+            return {"CANCELLED"}
+        keep_panel_current()
+        return {"FINISHED"}
+
+
 class HazePreferences(bpy.types.AddonPreferences):
     bl_idname = ADDON_ID
 
@@ -58,8 +78,12 @@ class HazePreferences(bpy.types.AddonPreferences):
         column.label(text=f"Kernel cache: {root}")
         column.label(text=f"Size: {kernel_cache.cache_text(root)}")
         row = layout.row()
-        row.enabled = not HAZE_OT_clear_kernel_cache.busy()
-        row.operator(HAZE_OT_clear_kernel_cache.bl_idname, icon="TRASH")
+        compile_button = row.row()
+        compile_button.enabled = not background.running()
+        compile_button.operator(HAZE_OT_compile_kernels.bl_idname, icon="FILE_REFRESH")
+        clear_button = row.row()
+        clear_button.enabled = not HAZE_OT_clear_kernel_cache.busy()
+        clear_button.operator(HAZE_OT_clear_kernel_cache.bl_idname, icon="TRASH")
 
 
 STATE_ICONS = {"ready": "CHECKMARK", "failed": "ERROR", "compiling": "SORTTIME", "checking": "SORTTIME"}
@@ -75,7 +99,7 @@ def redraw_while_compiling() -> float | None:
     return REDRAW_SECONDS if background.running() else None
 
 
-CLASSES = (HAZE_OT_clear_kernel_cache, HazePreferences)
+CLASSES = (HAZE_OT_clear_kernel_cache, HAZE_OT_compile_kernels, HazePreferences)
 
 
 def register() -> None:
@@ -92,7 +116,11 @@ def unregister() -> None:
 
 def start_background_compile() -> None:
     """Start compiling the common scenes' kernels, and keep the panel's state current."""
-    if background.start(headless=bpy.app.background) is None or bpy.app.background:
-        return
-    if not bpy.app.timers.is_registered(redraw_while_compiling):
+    if background.start(headless=bpy.app.background) is not None:
+        keep_panel_current()
+
+
+def keep_panel_current() -> None:
+    """Redraw the preferences once a second while the compile runs (a UI only)."""
+    if not bpy.app.background and not bpy.app.timers.is_registered(redraw_while_compiling):
         bpy.app.timers.register(redraw_while_compiling, first_interval=REDRAW_SECONDS)

@@ -103,6 +103,10 @@ def main():
     out["after_clear"] = listing()
     out["other_files_kept"] = open(os.path.join(ROOT, "notes.txt")).read()
     out["linked_target_kept"] = sorted(os.listdir(os.environ["HAZE_OUTSIDE"]))
+    out["after_clear_kind"] = B.state().kind
+    stand_in("print('kernels ready (0.2 s)')")
+    out["compile_button"] = sorted(bpy.ops.haze.compile_kernels())
+    out["compile_button_kind"] = wait_for("ready")
 
     stand_in("import sys; print('numba exploded'); sys.exit(1)")
     B.start()
@@ -151,12 +155,14 @@ def test_enable_starts_one_background_compile_and_shows_its_state(prefs_run):
 
 def test_preferences_panel_shows_state_log_folder_size_and_button(prefs_run):
     result, root = prefs_run
-    state, log, folder, size, button = result["panel_compiling"]
+    state, log, folder, size, compile_button, clear_button = result["panel_compiling"]
     assert state.startswith("Compiling kernels in the background") and log == f"Log: {root / 'warmup.log'}"
     assert folder == f"Kernel cache: {root}" and size == "Size: 3.0 MB in 2 builds"
-    assert button == "[haze.clear_kernel_cache disabled]"  # greyed out while compiling
+    # Both buttons greyed out while compiling.
+    assert compile_button == "[haze.compile_kernels disabled]"
+    assert clear_button == "[haze.clear_kernel_cache disabled]"
     assert result["panel_ready"][0].startswith("Kernels ready")
-    assert result["panel_ready"][-1] == "[haze.clear_kernel_cache]"
+    assert result["panel_ready"][-2:] == ["[haze.compile_kernels]", "[haze.clear_kernel_cache]"]
 
 
 def test_clear_refuses_while_compiling(prefs_run):
@@ -191,6 +197,12 @@ def test_background_compile_uses_the_exported_cameras_array_layout(prefs_run):
 def test_registering_imports_no_numba(prefs_run):
     result, _ = prefs_run
     assert result["numba_imported_by_register"] is False
+
+
+def test_compile_kernels_button_starts_the_background_compile_again(prefs_run):
+    result, _ = prefs_run
+    assert result["after_clear_kind"] == "idle"  # "ready" would no longer be true
+    assert result["compile_button"] == ["FINISHED"] and result["compile_button_kind"] == "ready"
 
 
 def test_ready_and_failed_states(prefs_run):
