@@ -26,6 +26,24 @@ from .export.validate import export_validated
 PUSH_INTERVAL = 1.0  # seconds between image updates shown to the user
 MAX_DISPLAY_SHARE = 0.02  # pushes may take at most this share of the render time
 MAX_REPORTED_WARNINGS = 20  # more go to the console only, so the UI is not flooded
+COMPILING_TEXT = "Haze | Compiling kernels (first run only)…"
+
+_active_renders = 0  # RenderSessions running in this process (the cache must not be cleared then)
+
+
+def rendering() -> bool:
+    """True while a render of this process runs (Clear kernel cache refuses then)."""
+    return _active_renders > 0
+
+
+@contextmanager
+def counted_render():
+    global _active_renders
+    _active_renders += 1
+    try:
+        yield
+    finally:
+        _active_renders -= 1
 
 
 def format_duration(seconds: float) -> str:
@@ -110,6 +128,10 @@ class RenderSession:
         self.cancelled = False
 
     def run(self) -> None:
+        with counted_render():
+            self._run()
+
+    def _run(self) -> None:
         result = self.engine.begin_result(0, 0, self.width, self.height)
         try:
             self._render(result)
@@ -144,11 +166,17 @@ class RenderSession:
 
         self.engine.update_stats("", "Haze | Rendering")
         frames = render_progressive(exported.scene, workers=self._workers(),
-                                    target_error=float(self.settings.target_error), validate=False)
+                                    target_error=float(self.settings.target_error), validate=False,
+                                    on_compile=self._on_compile)
         try:
             self._consume(frames, result)
         finally:
             frames.close()  # stops the renderer's workers, also on cancel or error
+
+    def _on_compile(self, names: list[str]) -> None:
+        """The kernels are not in the cache: say why the first image takes minutes."""
+        self.engine.update_stats("", COMPILING_TEXT)
+        print(f"Haze: compiling kernels (first run only): {', '.join(names)}")
 
     def _workers(self) -> int:
         from .export.scene import worker_count
