@@ -123,7 +123,10 @@ class Film:
 
     def window(self) -> tuple[int, int, int, int]:
         """(x, y, width, height) of the rendered pixels."""
-        return self.region if self.region is not None else (0, 0, self.width, self.height)
+        if self.region is None:
+            return (0, 0, self.width, self.height)
+        x, y, w, h = self.region  # a scene file's numbers may arrive as floats
+        return (int(x), int(y), int(w), int(h))
 
 
 @dataclass

@@ -186,6 +186,8 @@ def _check_film(film: Film, path: str) -> None:
         size = getattr(film, name)
         require(1 <= size <= MAX_FILM_SIDE, f"{path}.{name}", f"must be in [1, {MAX_FILM_SIDE}], got {size}")
     if film.region is not None:
+        require(all(float(v).is_integer() for v in film.region), f"{path}.region",
+                f"must be whole pixels, got {tuple(film.region)}")
         x, y, w, h = film.region
         inside = 0 <= x and 0 <= y and w >= 1 and h >= 1 and x + w <= film.width and y + h <= film.height
         require(inside, f"{path}.region", f"must be a non-empty window of the {film.width}x{film.height} "
