@@ -89,6 +89,11 @@ def build(name):
         data.type = "ORTHO"
         data.ortho_scale = 5.0
         data.shift_x = 0.05
+        # Cycles' orthographic aperture is 1 / (2 f-stop) scene units: 0.5 at f/1, which
+        # blurs the wall 7 m away over about 3.6 pixels (0.078 m each).
+        data.dof.use_dof = True
+        data.dof.focus_distance = 4.5
+        data.dof.aperture_fstop = 1.0
     if name in ("equirect", "fisheye"):
         # These see the sky: a sun disc in it would be a pixel-sized firefly for both
         # renderers, far noisier than the test allows. The sky lights the stage alone.
@@ -103,6 +108,13 @@ def build(name):
         data.panorama_type = "FISHEYE_EQUISOLID"
         data.fisheye_lens = 9.0
         data.fisheye_fov = math.radians(170.0)
+        # Panoramic depth of field: the lens disk across each ray, its radius from the
+        # perspective focal length as Cycles syncs it (200 mm / (2 x 0.1) = 1 m): the sky is
+        # blurred over about 5 pixels.
+        data.lens = 200.0
+        data.dof.use_dof = True
+        data.dof.focus_distance = 3.0
+        data.dof.aperture_fstop = 0.1
     if name == "alpha":
         # An absorbing cube partly against the sky: fractional alpha where it is seen.
         C.box("Smoke", (-1.2, 0.5, 2.2), 0.4, C.fog_material("Smoke", 0.0, 1.5, 0.0))
