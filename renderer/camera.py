@@ -5,7 +5,8 @@ types. Box filter of width 1: the sample is a uniform jitter in its pixel.
 Cycles' camera space looks down +Z; Haze's (Blender's) looks down -Z with +Y up, so a
 direction (x, y, z) of Cycles' perspective space is (x, y, -z) here. Cycles' panoramic
 space looks down +X with +Z up (the centre of an environment map); its (x, y, z) is
-(-y, z, -x) here, a rotation, so cross products keep their sense.
+(-y, z, -x) here. The mirror ball's looks down -Y with +Z up (as a mirror ball texture
+does); its (x, y, z) is (x, z, y) here (blender/camera.cpp, blender_camera_matrix).
 
 The pinhole perspective camera takes the first branch and costs what it did before the
 other projections existed.
@@ -74,7 +75,9 @@ def camera_ray(cam, px, py, u1, u2, u3, u4):
         return _origin(to_world), _direction(to_world, (0.0, 0.0, -1.0)), clip[0], 0.0, False
     o = (0.0, 0.0, 0.0)
     if lens[LENS_RADIUS] > 0.0:
-        o, d = _thin_lens_panorama(d, lens, u3, u4)
+        # The lens' first axis follows the panoramic space's x, wherever that is here.
+        axis = (1.0, 0.0, 0.0) if kind == MIRRORBALL else (0.0, 0.0, -1.0)
+        o, d = _thin_lens_panorama(d, axis, lens, u3, u4)
     return _point(to_world, o), _direction(to_world, d), clip[0], clip[1] - clip[0], True
 
 
@@ -102,17 +105,17 @@ def _orthographic(x, y, lens, u3, u4, near):
 
 
 @inline_kernel
-def _thin_lens_panorama(d, lens, u3, u4):
-    """Cycles' panoramic depth of field: the lens is the disk across direction d (its
-    first axis from the panoramic space's x, our -Z), focused at distance f along d."""
+def _thin_lens_panorama(d, a, lens, u3, u4):
+    """Cycles' panoramic depth of field: the lens is the disk across direction d, its first
+    axis U from the panoramic space's x axis a, focused at distance f along d."""
     lx, ly = aperture_point(lens, u3, u4)
     f = lens[LENS_FOCUS]
-    # U = normalize(a - (a . d) d) with a = (0, 0, -1); V = d x U.
-    a_dot_d = -d[2]
-    ux, uy, uz = a_dot_d * -d[0], a_dot_d * -d[1], -1.0 + a_dot_d * -d[2]
+    # U = normalize(a - (a . d) d); V = d x U (the spaces differ by rotations: same sense).
+    a_dot_d = a[0] * d[0] + a[1] * d[1] + a[2] * d[2]
+    ux, uy, uz = a[0] - a_dot_d * d[0], a[1] - a_dot_d * d[1], a[2] - a_dot_d * d[2]
     norm = math.sqrt(ux * ux + uy * uy + uz * uz)
     if norm <= 0.0:  # d along the axis: any perpendicular will do
-        ux, uy, uz, norm = 1.0, 0.0, 0.0, 1.0
+        ux, uy, uz, norm = d[1], d[2], d[0], 1.0
     ux, uy, uz = ux / norm, uy / norm, uz / norm
     vx = d[1] * uz - d[2] * uy
     vy = d[2] * ux - d[0] * uz
@@ -191,7 +194,8 @@ def panorama_direction(proj, u, v):
             return (0.0, 0.0, -1.0), False
         by = -math.sqrt(max(1.0 - bx * bx - bz * bz, 0.0))
         rx, ry, rz = -2.0 * by * bx, 1.0 - 2.0 * by * by, -2.0 * by * bz
-        return (-ry, rz, -rx), True
+        # The centre reflects -Y: the mirror ball space's forward, our -Z.
+        return (rx, rz, ry), True
     if kind == FISHEYE_EQUIDISTANT:
         a = 2.0 * (u - 0.5)
         b = 2.0 * (v - 0.5)
