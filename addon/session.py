@@ -188,6 +188,7 @@ class RenderSession:
                 return
 
     def _fill(self) -> None:
+        # Alpha comes from the Progress's film (its alpha sums); without one, alpha stays 1.
         film = getattr(self.latest, "film", None)
         alpha = film.alpha_image() if self.transparent and film is not None else None
         self.buffer.fill(self.latest.image, alpha)

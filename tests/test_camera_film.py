@@ -20,9 +20,9 @@ from renderer.scene import Lobe, Material, Medium, Mesh, Scene
 Z = 5.0  # z-score bound on the estimator's own variance
 
 
-def render_film(scene: Scene) -> Film:
+def render_film(scene: Scene, workers: int = 1) -> Film:
     last = None
-    for last in render_progressive(scene, workers=1):  # noqa: B007
+    for last in render_progressive(scene, workers=workers):  # noqa: B007
         pass
     assert last is not None
     return last.film
@@ -87,3 +87,13 @@ def test_without_transparent_film_alpha_is_one():
     film = render_film(scene)
     assert (film.alpha_image() == 1.0).all()
     assert film.image()[0, 0].min() > 0.1  # the world through the sheet
+
+
+def test_alpha_and_region_merge_across_workers():
+    """Workers' films add their alpha sums too (Film.add): two workers give one's image."""
+    scene = transparent_stage(spp=8)
+    scene.film.region = (2, 1, 12, 9)
+    alone, pair = render_film(scene), render_film(scene, workers=2)
+    assert (pair.width, pair.height) == (12, 9)
+    np.testing.assert_allclose(pair.alpha_image(), alone.alpha_image(), rtol=1e-6, atol=1e-7)
+    np.testing.assert_allclose(pair.image(), alone.image(), rtol=1e-5, atol=1e-7)
