@@ -19,7 +19,7 @@ import traceback
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 
-from .display import ResultBuffer, write_result
+from .display import ResultBuffer, render_region, write_result
 from .export.messages import ExportError
 from .export.validate import export_validated
 
@@ -123,7 +123,12 @@ class RenderSession:
         self.depsgraph = depsgraph
         self.settings = depsgraph.scene.haze
         self.width, self.height = int(engine.resolution_x), int(engine.resolution_y)
-        self.buffer = ResultBuffer(self.width, self.height)
+        render = getattr(depsgraph.scene, "render", None)
+        # Blender's result holds the Render Region only; the renderer renders just that window.
+        region = render_region(render, self.width, self.height)
+        self.window = region or (0, 0, self.width, self.height)
+        self.transparent = bool(getattr(render, "film_transparent", False))
+        self.buffer = ResultBuffer(self.window[2], self.window[3])
         self.latest = None  # last Progress received
         self.cancelled = False
 
@@ -132,7 +137,7 @@ class RenderSession:
             self._run()
 
     def _run(self) -> None:
-        result = self.engine.begin_result(0, 0, self.width, self.height)
+        result = self.engine.begin_result(0, 0, self.window[2], self.window[3])
         try:
             self._render(result)
         except KeyboardInterrupt:
@@ -149,7 +154,7 @@ class RenderSession:
         if result is None:
             return
         if self.latest is not None:
-            self.buffer.fill(self.latest.image)
+            self._fill()
         write_result(result, self.buffer)
         self.engine.end_result(result)
         if self.cancelled:
@@ -210,7 +215,13 @@ class RenderSession:
                 self.cancelled = True
                 return
 
+    def _fill(self) -> None:
+        # Alpha comes from the Progress's film (its alpha sums); without one, alpha stays 1.
+        film = getattr(self.latest, "film", None)
+        alpha = film.alpha_image() if self.transparent and film is not None else None
+        self.buffer.fill(self.latest.image, alpha)
+
     def _push(self, result) -> None:
-        self.buffer.fill(self.latest.image)
+        self._fill()
         write_result(result, self.buffer)
         self.engine.update_result(result)

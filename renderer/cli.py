@@ -233,7 +233,7 @@ def _render_and_write(args, scene) -> int:
         write_png(png, last.image)
         msg += f" and {png}"
     seconds = time.perf_counter() - t0
-    samples = last.spp * scene.film.width * scene.film.height
+    samples = last.spp * last.film.width * last.film.height  # the rendered window's pixels
     print(msg, file=sys.stderr)
     if last.film.nonfinite[0]:
         bad = int(last.film.nonfinite[0])

@@ -26,6 +26,7 @@ from renderer.scene import (
     LIGHT_TYPES,
     LOBE_KINDS,
     MEDIUM_TYPES,
+    PROJECTIONS,
     SAMPLING_MODES,
     SIDES,
     TRANSMITTANCE_MODES,
@@ -251,12 +252,45 @@ def _check_camera(camera: Camera, path: str) -> None:
         f"{path}.clip_end",
         f"must be > clip_start ({camera.clip_start}), got {camera.clip_end}",
     )
+    check_choice(camera.projection, PROJECTIONS, f"{path}.projection", "projection")
+    _check_lens(camera, path)
+    _check_panorama(camera, path)
+
+
+def _check_lens(camera: Camera, path: str) -> None:
+    require(camera.ortho_scale > 0.0, f"{path}.ortho_scale", f"must be > 0, got {camera.ortho_scale}")
+    require(camera.aperture_radius >= 0.0, f"{path}.aperture_radius",
+            f"must be >= 0, got {camera.aperture_radius}")
+    require(camera.focus_distance > 0.0, f"{path}.focus_distance",
+            f"must be > 0, got {camera.focus_distance}")
+    require(0 <= camera.aperture_blades <= 256, f"{path}.aperture_blades",
+            f"must be in [0, 256], got {camera.aperture_blades}")
+    require(camera.aperture_ratio > 0.0, f"{path}.aperture_ratio",
+            f"must be > 0, got {camera.aperture_ratio}")
+
+
+def _check_panorama(camera: Camera, path: str) -> None:
+    require(camera.longitude_min < camera.longitude_max, f"{path}.longitude_max",
+            f"must be > longitude_min ({camera.longitude_min}), got {camera.longitude_max}")
+    require(camera.latitude_min < camera.latitude_max, f"{path}.latitude_max",
+            f"must be > latitude_min ({camera.latitude_min}), got {camera.latitude_max}")
+    require(0.0 < camera.fisheye_fov <= 2.0 * np.pi, f"{path}.fisheye_fov",
+            f"must be in (0, 2 pi] radians, got {camera.fisheye_fov}")
+    require(camera.fisheye_lens > 0.0, f"{path}.fisheye_lens", f"must be > 0, got {camera.fisheye_lens}")
+    require(camera.sensor > 0.0, f"{path}.sensor", f"must be > 0, got {camera.sensor}")
 
 
 def _check_film(film: Film, path: str) -> None:
     for name in ("width", "height"):
         size = getattr(film, name)
         require(1 <= size <= MAX_FILM_SIDE, f"{path}.{name}", f"must be in [1, {MAX_FILM_SIDE}], got {size}")
+    if film.region is not None:
+        require(all(float(v).is_integer() for v in film.region), f"{path}.region",
+                f"must be whole pixels, got {tuple(film.region)}")
+        x, y, w, h = film.region
+        inside = 0 <= x and 0 <= y and w >= 1 and h >= 1 and x + w <= film.width and y + h <= film.height
+        require(inside, f"{path}.region", f"must be a non-empty window of the {film.width}x{film.height} "
+                f"frame, got {tuple(film.region)}")
 
 
 def _check_integrator(settings: IntegratorSettings, path: str) -> None:
