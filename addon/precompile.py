@@ -44,13 +44,8 @@ def cube(center, half: float) -> tuple[np.ndarray, np.ndarray]:
     return c + half * corners, np.array(triangles, np.int32)
 
 
-def surface_box(blender_camera: bool = True):
-    """A tiny Cornell box: diffuse walls, an emitting quad, a point light, no media.
-
-    The camera matrix the add-on exports (numpy's copy of Blender's matrix_world) is in
-    column-major (Fortran) order, a scene file's in row-major (C) order, and numba compiles
-    the camera kernels once per array layout: blender_camera picks the add-on's.
-    """
+def surface_box():
+    """A tiny Cornell box: diffuse walls, an emitting quad, a point light, no media."""
     from renderer.scene import Camera, Film, IntegratorSettings, Lobe, Material, Mesh, PointLight, Scene
 
     walls = [quad((0, -1, 0), (0, 0, 1), (1, 0, 0)), quad((0, 0, -1), (1, 0, 0), (0, 1, 0)),
@@ -62,8 +57,6 @@ def surface_box(blender_camera: bool = True):
                  Material("lamp", [Lobe("diffuse")], emission=(10.0, 10.0, 10.0))]
     to_world = np.eye(4)
     to_world[:3, 3] = (0.0, 0.0, 3.9)
-    if blender_camera:
-        to_world = np.asfortranarray(to_world)
     return Scene(camera=Camera(to_world=to_world, fov=37.0), film=Film(4, 4),
                  integrator=IntegratorSettings(spp=1, max_bounces=3), materials=materials, meshes=meshes,
                  lights=[PointLight((0.0, 0.5, 0.0), (1.0, 1.0, 1.0))])
@@ -84,7 +77,7 @@ def fog_filled_box():
     """The box filled with fog, camera included (the command line's fog Cornell box)."""
     from renderer.scene import Medium
 
-    scene = surface_box(blender_camera=False)
+    scene = surface_box()
     scene.media.append(Medium("fog", sigma_a=(0.002, 0.003, 0.002), sigma_s=(0.3, 0.3, 0.3)))
     scene.medium = "fog"
     return scene

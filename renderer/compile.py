@@ -132,7 +132,10 @@ def _camera(scene: Scene) -> CameraParams:
     shift = np.array(cam.shift, np.float64) * 2.0 * max(half)
     x0, y0, _, _ = film.window()
     raster = np.array([film.width, film.height, x0, y0], np.float64)
-    return CameraParams(np.asarray(cam.to_world, np.float64), half, shift,
+    # C order whatever the scene gave (Blender's matrix_world arrives in Fortran order):
+    # numba compiles the camera kernels once per array layout.
+    to_world = np.ascontiguousarray(cam.to_world, np.float64)
+    return CameraParams(to_world, half, shift,
                         np.array([cam.clip_start, cam.clip_end], np.float64), raster, _lens(cam),
                         _projection(cam, aspect))
 
