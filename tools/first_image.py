@@ -62,6 +62,9 @@ DEFAULT_TIMEOUT = 900.0
 # The CLI's progress bar, printed after every pass (renderer/cli.py _bar).
 PASS_LINE = re.compile(rb"\[[#.]+\] (\d+)/(\d+) spp")
 COMPILED_LINE = re.compile(rb"compiled kernels in ([0-9.]+) s")
+# "compiling kernels (first run only): N s" (one process) or "haze: compiling kernels (first
+# run only): NAMES" (each worker process that compiles).
+COMPILING = b"compiling kernels"
 
 F12_SCRIPT = r'''
 """Blender side of tools/first_image.py: build one scene, time one 1-spp F12."""
@@ -155,6 +158,7 @@ class Streamed:
     output: bytes
     first_pass: float | None
     compiled_seconds: float | None
+    compiling_message: float | None  # when "compiling kernels" first showed, seconds after launch
 
 
 def run_streaming(command: list[str], env: dict[str, str], cwd: Path, timeout: float) -> Streamed:
@@ -167,6 +171,7 @@ def run_streaming(command: list[str], env: dict[str, str], cwd: Path, timeout: f
                                stdin=subprocess.DEVNULL, start_new_session=True)
     buffer = bytearray()
     first: list[float] = []
+    compiling: list[float] = []
 
     def read() -> None:
         assert process.stdout is not None
@@ -177,9 +182,12 @@ def run_streaming(command: list[str], env: dict[str, str], cwd: Path, timeout: f
                 return
             now = time.perf_counter() - start
             buffer.extend(chunk)
-            # The bar is written in one flushed print; search only the tail that could hold it.
-            if not first and PASS_LINE.search(buffer, max(0, len(buffer) - len(chunk) - 200)):
+            # Each line is written in one flushed print; search only the tail that could hold it.
+            since = max(0, len(buffer) - len(chunk) - 200)
+            if not first and PASS_LINE.search(buffer, since):
                 first.append(now)
+            if not compiling and buffer.find(COMPILING, since) >= 0:
+                compiling.append(now)
 
     reader = threading.Thread(target=read, daemon=True)
     reader.start()
@@ -196,7 +204,7 @@ def run_streaming(command: list[str], env: dict[str, str], cwd: Path, timeout: f
     reader.join(timeout=10.0)
     compiled = COMPILED_LINE.search(buffer)
     return Streamed(process.returncode, seconds, timed_out, bytes(buffer), first[0] if first else None,
-                    float(compiled.group(1)) if compiled else None)
+                    float(compiled.group(1)) if compiled else None, compiling[0] if compiling else None)
 
 
 def _kill_group(process: subprocess.Popen) -> None:
@@ -246,8 +254,13 @@ def run_cli(name: str, cache_state: str, scene_folder: Path, cache: Path, work: 
         command += ["--spp", str(spp)]
     streamed = run_streaming(command, base_environment(cache), REPO, timeout)
     run = Run("cli", name, cache_state, streamed.first_pass, streamed.seconds, streamed.returncode)
+    text = streamed.output.decode(errors="replace").replace("\r", "\n")
+    # the ticker's "...: N s" lines once, each worker's line as printed
+    compiling = {re.sub(r"\d+ s$", "N s", line.strip())
+                 for line in text.splitlines() if COMPILING.decode() in line}
     run.details = {"compiled_seconds_printed": streamed.compiled_seconds,
-                   "compile_message": b"compiling kernels" in streamed.output,
+                   "compiling_message_at": streamed.compiling_message,
+                   "compiling_lines": sorted(compiling)[:4],
                    "image_written": output.is_file()}
     if streamed.timed_out:
         run.problem = f"timed out after {timeout:.0f} s"
@@ -300,8 +313,10 @@ def describe(run: Run) -> str:
     first = f"{run.first_image:.1f} s" if run.first_image is not None else "-"
     total = f"{run.total:.1f} s" if run.total is not None else "-"
     extra = ""
+    if run.kind == "cli" and run.details.get("compiling_message_at") is not None:
+        extra = f", 'compiling kernels' shown at {run.details['compiling_message_at']:.1f} s"
     if run.kind == "cli" and run.details.get("compiled_seconds_printed") is not None:
-        extra = f", printed 'compiled kernels in {run.details['compiled_seconds_printed']:.1f} s'"
+        extra += f", printed 'compiled kernels in {run.details['compiled_seconds_printed']:.1f} s'"
     if run.kind == "f12" and "seconds_before_render" in run.details:
         extra = f", {run.details['seconds_before_render']:.1f} s import+register+build before F12"
     problem = f"  PROBLEM: {run.problem}" if run.problem else ""
