@@ -44,8 +44,11 @@ for _path in (REPO, REPO / "examples"):
 import blender_cornell as C  # noqa: E402
 
 from addon.volume_grids import gaussian_smoke_density, read_pbrt, smoke_ball_density, write_pbrt  # noqa: E402
-from examples.media_scenes import FIG6_G, FIG8_G, FIG8_SIGMA_A, FIG8_SIGMA_S, fire_temperature  # noqa: E402
 from examples.scenes import FIG1_SIGMA_A, FIG1_SIGMA_S, icosphere  # noqa: E402
+
+# examples.media_scenes (Fig. 6 to 8 constants) is imported by the builders that need it: it
+# imports numba and the renderer's kernels, which the other scenes must not load before their
+# render (tools/first_image.py times F12 as a user gets it, renderer not yet imported).
 
 OUT = REPO / "out" / "blender_gallery"
 PREVIEW_SAMPLES = {  # samples per pixel at the preview size: each scene well under 2 minutes
@@ -162,6 +165,7 @@ def yellow_smoke(size: int, folder: Path) -> bpy.types.Scene:
     """Fig. 6: Color (0.7, 0.4375, 0.1) and Density 8 give sigma_s (5.6, 3.5, 0.8) and sigma_a
     (2.4, 4.5, 7.2); times the gallery's peak density 0.6."""
     from addon.operators_volume import principled_volume_material
+    from examples.media_scenes import FIG6_G
 
     scene = cornell(size, MEDIA_BOUNCES)
     material = principled_volume_material("Yellow Smoke", (0.7, 0.4375, 0.1), 8.0 * 0.6, FIG6_G)
@@ -175,6 +179,7 @@ def fire_ball(size: int, folder: Path) -> bpy.types.Scene:
     emission and a thin smoke (Color 2/3, Density 0.9: sigma_s 0.6, sigma_a 0.3) under a
     dimmed orange lamp."""
     from addon.operators_volume import principled_volume_material
+    from examples.media_scenes import fire_temperature
 
     scene = cornell(size, MEDIA_BOUNCES, light_radiance=1.7, light_color=(1.0, 0.7, 0.24))
     temperature = fire_temperature()
@@ -201,6 +206,8 @@ def fire_ball(size: int, folder: Path) -> bpy.types.Scene:
 def underwater(size: int) -> bpy.types.Scene:
     """Fig. 8: a sphere of water (Glass BSDF, IOR 1.33, around the Fig. 8 medium scaled by 4:
     the paper's bust is tens of units tall); the lamp 2.5 times wider at the same power."""
+    from examples.media_scenes import FIG8_G, FIG8_SIGMA_A, FIG8_SIGMA_S
+
     scene = cornell(size, MEDIA_BOUNCES, light_scale=2.5)
     material = volume_scatter_absorb("Water", tuple(4.0 * v for v in FIG8_SIGMA_A),
                                      tuple(4.0 * v for v in FIG8_SIGMA_S), FIG8_G)
