@@ -97,6 +97,7 @@ class CompiledScene:
     needs_shadow_walk: bool  # shadow rays must walk through interfaces / transparent surfaces
     scene_radius: float
     transparent: bool = False  # Film > Transparent: the world seen directly gives alpha 0
+    aovs: bool = False  # the surface stage writes the passes' columns (renderer.passes)
 
 
 def _merge_meshes(scene: Scene, material_index: dict[str, int], medium_index: dict[str, int]):
@@ -195,7 +196,7 @@ def compile_scene(scene: Scene) -> CompiledScene:
     _, _, width, height = scene.film.window()
     return CompiledScene(vertices, indices, geometry, materials, lights, media, _camera(scene),
                          width, height, world_medium, has_media, needs_walk, radius,
-                         bool(scene.film.transparent))
+                         bool(scene.film.transparent), bool(scene.film.aovs))
 
 
 def _lets_light_through(material) -> bool:

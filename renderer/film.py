@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .integrator.paths import AOV_COUNT, AOV_FIRST
 from .kernels import kernel
 
 # relMSE = mean((x - ref)^2 / (ref^2 + REL_EPS)); the offset keeps black pixels from dominating.
@@ -26,6 +27,14 @@ class Film:
         self.n = np.zeros(p, np.int64)  # samples per pixel
         self.alpha = np.zeros(p, np.float64)  # sum of the samples' alpha (1 unless Film > Transparent)
         self.nonfinite = np.zeros(1, np.int64)  # path values that were NaN or inf (added as 0)
+        # Sums of the render passes' columns (integrator.paths AOV_*), only once a tracer with
+        # passes requested adds to this film (ensure_aov): a film without passes holds none.
+        self.aov: np.ndarray | None = None
+
+    def ensure_aov(self) -> np.ndarray:
+        if self.aov is None:
+            self.aov = np.zeros((self.width * self.height, AOV_COUNT), np.float64)
+        return self.aov
 
     def add(self, other: Film) -> None:
         self.sum += other.sum
@@ -33,6 +42,8 @@ class Film:
         self.n += other.n
         self.alpha += other.alpha
         self.nonfinite += other.nonfinite
+        if other.aov is not None:
+            self.ensure_aov()[:] += other.aov
 
     @property
     def spp(self) -> int:
@@ -80,12 +91,14 @@ class Film:
 
 
 @kernel
-def splat(n, L, pixel_of_pid, film_sum, film_sq, film_n, film_nonfinite, film_alpha):
+def splat(n, L, pixel_of_pid, film_sum, film_sq, film_n, film_nonfinite, film_alpha, film_aov):
     """Add paths 0..n-1 of a batch (radiance L[pid, :3], pixel pixel_of_pid[pid]) to a
     Film's arrays: per-pixel sum, sum of squares, count, and alpha = 1 - the path's
     transparency L[pid, 3] (see integrator.paths.ALPHA). A non-finite path value (a bug, never
     expected) is counted and added as 0, so one bad path cannot ruin an image but cannot
-    pass unnoticed either."""
+    pass unnoticed either. film_aov (P, AOV_COUNT) gets the passes' columns L[pid, AOV_FIRST:],
+    or is empty (0 rows) when no pass was requested."""
+    aovs = film_aov.shape[0] > 0
     for i in range(n):
         px = pixel_of_pid[i]
         for c in range(3):
@@ -97,6 +110,9 @@ def splat(n, L, pixel_of_pid, film_sum, film_sq, film_n, film_nonfinite, film_al
             film_sq[px, c] += v * v
         film_n[px] += 1
         film_alpha[px] += 1.0 - L[i, 3]
+        if aovs:
+            for c in range(AOV_COUNT):
+                film_aov[px, c] += L[i, AOV_FIRST + c]
 
 
 def box_mean(image: np.ndarray, radius: int) -> np.ndarray:

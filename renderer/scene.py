@@ -114,12 +114,15 @@ class Film:
     transparent: the world seen directly (through pass-through surfaces and media, not
     through scattering or refraction) is left out of the image and gives alpha 0, as with
     Cycles' Film > Transparent; otherwise alpha is 1 everywhere.
+    aovs: the film also sums the passes of renderer.passes (Depth, Position, Normal,
+    Denoising Albedo and Normal); a render-time request, not part of the scene file.
     """
 
     width: int = 128
     height: int = 128
     region: tuple[int, int, int, int] | None = None
     transparent: bool = False
+    aovs: bool = False  # also sum the data and denoising passes (renderer.passes); off = no cost
 
     def window(self) -> tuple[int, int, int, int]:
         """(x, y, width, height) of the rendered pixels."""

@@ -27,6 +27,7 @@ CONFIG = Layout("integrator config", [
     ("walk_shadows", 1),  # shadow rays may pass interfaces (walk_shadows, not one occlusion test)
     ("nee_batch", 1),  # homogeneous next-event vertices in SIMD batches (nee_batch); 0 = scalar
     ("film_transparent", 1),  # Film > Transparent: the world seen directly gives alpha 0
+    ("aovs", 1),  # write the render passes' columns of L (integrator.paths AOV_*); 0 = none
 ])
 CFG_MAX_BOUNCES = CONFIG.offset("max_bounces")
 CFG_RR_DEPTH = CONFIG.offset("rr_depth")
@@ -38,6 +39,7 @@ CFG_HAS_MEDIA = CONFIG.offset("has_media")
 CFG_WALK_SHADOWS = CONFIG.offset("walk_shadows")
 CFG_NEE_BATCH = CONFIG.offset("nee_batch")
 CFG_FILM_TRANSPARENT = CONFIG.offset("film_transparent")
+CFG_AOVS = CONFIG.offset("aovs")
 CFG_SIZE = CONFIG.size
 
 # How direct light is estimated: both techniques weighted by MIS, light sampling only, or
@@ -58,4 +60,5 @@ def make_config(cs: CompiledScene, settings: IntegratorSettings) -> np.ndarray:
     cfg[CFG_WALK_SHADOWS] = cs.needs_shadow_walk
     cfg[CFG_NEE_BATCH] = 1
     cfg[CFG_FILM_TRANSPARENT] = cs.transparent
+    cfg[CFG_AOVS] = cs.aovs
     return cfg

@@ -26,6 +26,21 @@ RAY_FAR = 1e30  # "no hit" length of a ray, and the distance of lights at infini
 # turns into alpha = 1 - transparency.
 ALPHA = 3
 L_COLUMNS = 4
+# With render passes requested (CFG_AOVS) L has L_COLUMNS_AOV columns: after alpha, the
+# AOV_COUNT columns the film sums (renderer.passes turns them into Blender's passes), then
+# per-path scratch the surface stage keeps between bounces (not summed).
+AOV_FIRST = 4
+AOV_HIT0 = 4  # 1 when the pixel's sample 0 hit a surface: Depth and Position are then valid
+AOV_POSITION = 5  # sample 0's first non-transparent hit, world space (Cycles overwrites on sample 0)
+AOV_NORMAL = 8  # shading normal (facing the ray) of the first non-transparent hit, every sample
+AOV_DALBEDO = 11  # Denoising Albedo: feature throughput x diffuse-like albedo (or emission seen)
+AOV_DNORMAL = 14  # Denoising Normal, world space (renderer.passes turns it into camera space)
+AOV_COUNT = 13
+AOV_SAMPLE0 = 17  # scratch: 1 for sample 0 of its pixel (set by the wavefront)
+AOV_DATA_DONE = 18  # scratch: the data passes (position, normal) were written
+AOV_FEAT_DONE = 19  # scratch: the denoising features were written
+AOV_FEAT_T = 20  # scratch, 3 columns: feature throughput (product of the specular albedos passed)
+L_COLUMNS_AOV = 23
 
 
 @inline_kernel

@@ -34,7 +34,9 @@ from ..lights.sample import (
     triangle_light_pdf,
 )
 from ..lights.table import LT_CDF
+from .aovs import aov_background, aov_emission, aov_surface
 from .config import (
+    CFG_AOVS,
     CFG_FILM_TRANSPARENT,
     CFG_MAX_BOUNCES,
     CFG_RR_DEPTH,
@@ -71,6 +73,7 @@ def shade_surface(n, ps, prim, bu, bv, geo, mt, lt, env_light, sun_rows, cfg, L,
     max_bounces = cfg[CFG_MAX_BOUNCES]
     sampling = cfg[CFG_SAMPLING]
     transparent = cfg[CFG_FILM_TRANSPARENT] != 0
+    aovs = cfg[CFG_AOVS] != 0  # render passes requested (integrator.aovs); else no pass work at all
     cdf = lt[LT_CDF]  # what pick_light searches: L + 1 entries
     for i in range(n):
         if ps.alive[i] != PATH_ACTIVE:
@@ -96,7 +99,12 @@ def shade_surface(n, ps, prim, bu, bv, geo, mt, lt, env_light, sun_rows, cfg, L,
                 env = -1
             le, pdf_light = escaped_radiance(lt, env, sun_rows, d)
             if max3(le) > 0.0:
-                add_weighted_radiance(L, pid, beta, le, hit_weight(ps.mis_pdf[i], pdf_light, sampling))
+                w = hit_weight(ps.mis_pdf[i], pdf_light, sampling)
+                add_weighted_radiance(L, pid, beta, le, w)
+                if aovs:
+                    aov_emission(L, pid, beta, le, w)
+            if aovs:
+                aov_background(L, pid)
             ps.alive[i] = PATH_DEAD
             continue
 
@@ -119,21 +127,28 @@ def shade_surface(n, ps, prim, bu, bv, geo, mt, lt, env_light, sun_rows, cfg, L,
                     pdf_light = triangle_light_pdf(lt, light, load3(ps.mis_o, i), x, dot(d, ng))
                     w = hit_weight(ps.mis_pdf[i], pdf_light, sampling)
                 add_weighted_radiance(L, pid, beta, le, w)
+                if aovs:
+                    aov_emission(L, pid, beta, le, w)
 
         if not bsdf_has_lobes(mt, m, front):
             if light >= 0:
                 # A pure emitter (Cycles' Emission shader): black, opaque.
+                if aovs:
+                    sn = _shading_normal(geo, p, b0, b1, b2, ng)
+                    aov_surface(L, pid, mt, m, front, x, sn if front else neg(sn), depth)
                 ps.alive[i] = PATH_DEAD
                 continue
             # An invisible interface: cross it without scattering.
             _cross_interface(ps, i, geo, p, front, x, ng, d, beta)
             ps.dim[i] = dim
             continue
+        sn = _shading_normal(geo, p, b0, b1, b2, ng)
+        if aovs:
+            aov_surface(L, pid, mt, m, front, x, sn if front else neg(sn), depth)
         if depth > max_bounces:
             ps.alive[i] = PATH_DEAD
             continue
 
-        sn = _shading_normal(geo, p, b0, b1, b2, ng)
         ts, tt = onb(sn)
         wo = to_local(neg(d), ts, tt, sn)
 

@@ -15,9 +15,9 @@ from ..lights.table import kernel_arrays
 from ..media.layout import dda_scratch
 from ..scene import IntegratorSettings
 from . import stages as K
-from .config import make_config
+from .config import CFG_AOVS, make_config
 from .nee_batch import NeeBatch
-from .paths import L_COLUMNS
+from .paths import AOV_COUNT, AOV_FEAT_T, AOV_SAMPLE0, L_COLUMNS, L_COLUMNS_AOV
 from .state import allocate_paths, allocate_shadows
 
 
@@ -74,10 +74,13 @@ class Tracer:
         # The same again where the kernels may meet grid media, None when the scene has none:
         # then they compile without the grid trackers (numba prunes branches on None).
         self.grid_md = self.md if cs.media.has_grids else None
-        self.L = np.zeros((self.batch, L_COLUMNS), np.float64)  # RGB and transparency
+        self.cfg = make_config(cs, settings)
+        self.aovs = bool(self.cfg[CFG_AOVS])
+        # RGB and transparency, and the render passes' columns when they were asked for.
+        self.L = np.zeros((self.batch, L_COLUMNS_AOV if self.aovs else L_COLUMNS), np.float64)
+        self.no_aov = np.zeros((0, AOV_COUNT), np.float64)  # splat's film_aov without passes
         self.pixel_of_pid = np.zeros(self.batch, np.int32)
         self.remaining = np.zeros(2 * self.batch, np.float32)
-        self.cfg = make_config(cs, settings)
         self.lt = kernel_arrays(cs.lights)
         self.init_stack = camera_medium_stack(cs, self.isect)
         self.stats = {"rays": 0, "shadow_rays": 0, "embree_s": 0.0}
@@ -96,7 +99,7 @@ class Tracer:
                                cs.lights.sun_rows, cfg, L, sh, 0)),
             (K.compact_paths, (1, ps)),
             (K.splat, (1, L, self.pixel_of_pid, np.zeros((1, 3), np.float64), np.zeros((1, 3), np.float64),
-                       np.zeros(1, np.int64), np.zeros(1, np.int64), np.zeros(1, np.float64))),
+                       np.zeros(1, np.int64), np.zeros(1, np.int64), np.zeros(1, np.float64), self.no_aov)),
         ]
         if cs.has_media:
             calls.append((K.shade_media, (1, ps, prim, lt, self.md, cfg, L, sh, self.nb, self.grid_md)))
@@ -123,6 +126,8 @@ class Tracer:
         self.L[:n] = 0.0
         K.start_paths(ps, self.pixel_of_pid, cs.camera, cs.width, cs.height, seed, first, n, sample_base,
                       self.init_stack)
+        if self.aovs:
+            self._start_aovs(first, n, sample_base)
         live = n
         while live > 0:
             prim, bu, bv = self.isect.intersect(ps.o[:live], ps.d[:live], ps.tmax[:live])
@@ -136,7 +141,18 @@ class Tracer:
             if count:
                 self._shadows(count)
             live = K.compact_paths(live, ps)
-        K.splat(n, self.L, self.pixel_of_pid, film.sum, film.sq, film.n, film.nonfinite, film.alpha)
+        film_aov = film.ensure_aov() if self.aovs else self.no_aov
+        K.splat(n, self.L, self.pixel_of_pid, film.sum, film.sq, film.n, film.nonfinite, film.alpha, film_aov)
+
+    def _start_aovs(self, first: int, n: int, sample_base: int) -> None:
+        """The passes' per-path scratch: feature throughput 1, and which paths are their
+        pixel's sample 0 (linear index k is sample sample_base + k // pixels, as in
+        start_paths)."""
+        L = self.L
+        L[:n, AOV_FEAT_T:AOV_FEAT_T + 3] = 1.0
+        pixels = self.cs.width * self.cs.height
+        sample = sample_base + np.arange(first, first + n) // pixels
+        L[:n, AOV_SAMPLE0] = sample == 0
 
     def _shadows(self, count: int) -> None:
         sh = self.sh

@@ -1,0 +1,122 @@
+"""The render passes' per-path values, written by the surface stage into L's AOV columns
+(integrator.paths AOV_*) when CFG_AOVS is on; renderer.passes turns the film's sums of them
+into Blender's passes. Definitions follow Cycles (kernel/film/data_passes.h and
+denoising_passes.h in the bpy 5.0 source):
+
+* Data passes, at the first hit of a camera path that has not scattered (Cycles'
+  PATH_RAY_TRANSPARENT_BACKGROUND) on a surface that is not mostly transparent (alpha >= 0.5,
+  Cycles' default pass alpha threshold): Position (and the hit flag Depth is made from) from
+  the pixel's sample 0 only (Cycles overwrites them on sample 0), Normal summed over every
+  sample (Cycles adds it, and a miss adds 0). Interfaces without lobes (medium boundaries)
+  are skipped, as Cycles skips SD_HAS_ONLY_VOLUME surfaces.
+* Denoising features: at each surface with lobes, while not yet written, the closures are
+  split into diffuse-like (Lambertian, plastic, GGX with alpha = roughness^2 > 0.075) and
+  specular-like (smooth glass, mirrors, transparent, GGX alpha <= 0.075). Unless 75% or more
+  of the selection weight is specular-like, the normal (selection-weighted mean, facing the
+  ray) and albedo = feature throughput x diffuse-like albedo are written and the features
+  are done; otherwise the feature throughput is multiplied by the specular-like albedo and
+  the path looks further. Emission or background found before that adds
+  feature throughput x radiance x MIS weight to the albedo (Cycles' light_passes.h), and the
+  background ends the features.
+Lobe albedos are the lobe's weight x colour (Cycles' bsdf_albedo also folds in Fresnel for
+microfacet lobes; Haze's plastic and rough conductor are not corrected for it).
+"""
+
+from ..bsdfs import DIFFUSE, PLASTIC, ROUGH_CONDUCTOR, SIDE_BACK, SIDE_FRONT, TRANSPARENT
+from ..bsdfs.layout import L_COLOR, L_KIND, L_ROUGH, L_SIDES, L_WEIGHT, M_COUNT, M_FIRST
+from ..bsdfs.material import _lobe_selection
+from ..kernels import kernel
+from .paths import (
+    AOV_DALBEDO,
+    AOV_DATA_DONE,
+    AOV_DNORMAL,
+    AOV_FEAT_DONE,
+    AOV_FEAT_T,
+    AOV_HIT0,
+    AOV_NORMAL,
+    AOV_POSITION,
+    AOV_SAMPLE0,
+)
+
+ROUGH_ALPHA = 0.075  # Cycles: a closure with alpha_x alpha_y > 0.075^2 counts as diffuse-like
+ALPHA_THRESHOLD = 0.5  # Cycles' film pass_alpha_threshold default
+
+
+@kernel
+def aov_emission(L, pid, beta, le, w):
+    """Emission or background radiance le x MIS weight w found along the path before its
+    denoising features were written adds to Denoising Albedo (beta is the path throughput;
+    features are written by the first camera path only, so beta is 1 where Cycles writes)."""
+    if L[pid, AOV_FEAT_DONE] != 0.0:
+        return
+    for c in range(3):
+        L[pid, AOV_DALBEDO + c] += L[pid, AOV_FEAT_T + c] * le[c] * w
+
+
+@kernel
+def aov_background(L, pid):
+    """The path reached the world: its features end (the background radiance was added by
+    aov_emission); the data passes stay 0 (Depth reads 0 as 1e10, as Cycles)."""
+    L[pid, AOV_FEAT_DONE] = 1.0
+
+
+@kernel
+def aov_surface(L, pid, mt, m, front, x, facing, depth):
+    """The passes at a surface hit with lobes at point x, shading normal `facing` (turned
+    toward the incoming ray), after `depth` scattering events."""
+    mats, lobes = mt
+    start = mats[m, M_FIRST]
+    end = start + mats[m, M_COUNT]
+    side = SIDE_FRONT if front else SIDE_BACK
+    sum_w = 0.0
+    diffuse_w = 0.0
+    transparent_w = 0.0
+    d0 = d1 = d2 = 0.0  # diffuse-like albedo
+    s0 = s1 = s2 = 0.0  # specular-like albedo
+    for j in range(start, end):
+        if (int(lobes[j, L_SIDES]) & side) == 0:
+            continue
+        kind = int(lobes[j, L_KIND])
+        sw = _lobe_selection(lobes, j)
+        sum_w += sw
+        alpha = float(lobes[j, L_ROUGH]) ** 2
+        diffuse_like = kind == DIFFUSE or kind == PLASTIC or (kind == ROUGH_CONDUCTOR and alpha > ROUGH_ALPHA)
+        if kind == TRANSPARENT:
+            transparent_w += sw
+        a0 = float(lobes[j, L_WEIGHT]) * float(lobes[j, L_COLOR])
+        a1 = float(lobes[j, L_WEIGHT + 1]) * float(lobes[j, L_COLOR + 1])
+        a2 = float(lobes[j, L_WEIGHT + 2]) * float(lobes[j, L_COLOR + 2])
+        if diffuse_like:
+            diffuse_w += sw
+            d0, d1, d2 = d0 + a0, d1 + a1, d2 + a2
+        else:
+            s0, s1, s2 = s0 + a0, s1 + a1, s2 + a2
+
+    # Data passes: the first hit that is not mostly transparent, before any scattering.
+    mostly_transparent = sum_w > 0.0 and transparent_w > ALPHA_THRESHOLD * sum_w
+    if depth == 0 and L[pid, AOV_DATA_DONE] == 0.0 and not mostly_transparent:
+        if L[pid, AOV_SAMPLE0] != 0.0:
+            L[pid, AOV_HIT0] = 1.0
+            for c in range(3):
+                L[pid, AOV_POSITION + c] = x[c]
+        for c in range(3):
+            L[pid, AOV_NORMAL + c] += facing[c]
+        L[pid, AOV_DATA_DONE] = 1.0
+
+    if L[pid, AOV_FEAT_DONE] != 0.0:
+        return
+    # Wait for the next bounce when 75% or more of the weight is specular-like (Cycles).
+    if sum_w == 0.0 or diffuse_w * 4.0 > sum_w:
+        # All lobes share the one shading normal, so their weighted mean is that normal
+        # (and 0 when every lobe is black, as in Cycles).
+        if sum_w > 0.0:
+            for c in range(3):
+                L[pid, AOV_DNORMAL + c] += facing[c]
+        L[pid, AOV_DALBEDO] += L[pid, AOV_FEAT_T] * d0
+        L[pid, AOV_DALBEDO + 1] += L[pid, AOV_FEAT_T + 1] * d1
+        L[pid, AOV_DALBEDO + 2] += L[pid, AOV_FEAT_T + 2] * d2
+        L[pid, AOV_FEAT_DONE] = 1.0
+    else:
+        L[pid, AOV_FEAT_T] *= s0
+        L[pid, AOV_FEAT_T + 1] *= s1
+        L[pid, AOV_FEAT_T + 2] *= s2
