@@ -80,3 +80,21 @@ def render_region(render, width: int, height: int) -> tuple[int, int, int, int] 
 def write_result(result, buffer: ResultBuffer) -> None:
     """Store the buffer in the render result's Combined pass."""
     result.layers[0].passes["Combined"].rect.foreach_set(buffer.flat())
+
+
+def write_pass(result, name: str, image: np.ndarray, alpha: np.ndarray | None = None) -> bool:
+    """Store an (H, W, C) Haze image (row 0 = top) in the result's pass `name`, flipped to
+    Blender's bottom-up order, with `alpha` as a fourth channel when the pass has one.
+    Returns False when the result has no such pass (Blender made it from the passes the
+    engine registered for the view layer)."""
+    render_pass = result.layers[0].passes.get(name)
+    if render_pass is None:
+        return False
+    channels = int(render_pass.channels)
+    h, w = image.shape[:2]
+    out = np.ones((h, w, channels), np.float32)
+    out[:, :, :min(channels, image.shape[2])] = image[:, :, :channels]
+    if alpha is not None and channels == 4:
+        out[:, :, 3] = alpha
+    render_pass.rect.foreach_set(out[::-1].reshape(-1))
+    return True

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import bpy
 
+from .passes import requested_passes
 from .session import RenderSession
 
 
@@ -23,6 +24,12 @@ class HazeRenderEngine(bpy.types.RenderEngine):
 
     def render(self, depsgraph) -> None:
         RenderSession(self, depsgraph).run()
+
+    def update_render_passes(self, scene=None, renderlayer=None) -> None:
+        """Tell Blender which passes a render of this view layer has (the View Layer >
+        Passes toggles), so they reach the compositor and multilayer EXRs."""
+        for spec in requested_passes(scene, renderlayer):
+            self.register_pass(scene, renderlayer, spec.name, len(spec.channels), spec.channels, spec.kind)
 
 
 def register() -> None:

@@ -94,6 +94,12 @@ class HazeRenderSettings(bpy.types.PropertyGroup):
         "instead of one global bound",
         default=True,
     )
+    use_denoising: BoolProperty(
+        name="Denoise",
+        description="Denoise the final image with Open Image Denoise (the one in Blender), guided by "
+        "the Denoising Albedo and Normal passes; the raw image is kept as the Noisy Image pass",
+        default=False,
+    )
     workers: IntProperty(
         name="Workers",
         description="Worker processes rendering in parallel (0 = one per CPU core)",

@@ -19,9 +19,18 @@ import traceback
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 
-from .display import ResultBuffer, render_region, write_result
+from .display import ResultBuffer, render_region, write_pass, write_result
 from .export.messages import ExportError
 from .export.validate import export_validated
+from .passes import (
+    COMBINED,
+    DENOISING_ALBEDO,
+    DENOISING_NORMAL,
+    NOISY_IMAGE,
+    denoising_enabled,
+    needs_aovs,
+    requested_passes,
+)
 
 PUSH_INTERVAL = 1.0  # seconds between image updates shown to the user
 MAX_DISPLAY_SHARE = 0.02  # pushes may take at most this share of the render time
@@ -129,6 +138,11 @@ class RenderSession:
         self.window = region or (0, 0, self.width, self.height)
         self.transparent = bool(getattr(render, "film_transparent", False))
         self.buffer = ResultBuffer(self.window[2], self.window[3])
+        # The passes Blender's result holds for this view layer (update_render_passes), and
+        # whether the final image is denoised.
+        self.passes = requested_passes(depsgraph.scene, getattr(depsgraph, "view_layer", None))
+        self.denoise = denoising_enabled(depsgraph.scene)
+        self.camera = None  # the exported camera (Depth and Denoising Normal are relative to it)
         self.latest = None  # last Progress received
         self.cancelled = False
 
@@ -155,6 +169,7 @@ class RenderSession:
             return
         if self.latest is not None:
             self._fill()
+            self._final_passes(result)
         write_result(result, self.buffer)
         self.engine.end_result(result)
         if self.cancelled:
@@ -170,6 +185,9 @@ class RenderSession:
             from renderer.render import render_progressive
 
         self.engine.update_stats("", "Haze | Rendering")
+        # The passes cost nothing unless asked for: only then does the renderer write them.
+        exported.scene.film.aovs = needs_aovs(self.passes, self.denoise)
+        self.camera = exported.scene.camera
         frames = render_progressive(exported.scene, workers=self._workers(),
                                     target_error=float(self.settings.target_error), validate=False,
                                     on_compile=self._on_compile)
@@ -220,6 +238,36 @@ class RenderSession:
         film = getattr(self.latest, "film", None)
         alpha = film.alpha_image() if self.transparent and film is not None else None
         self.buffer.fill(self.latest.image, alpha)
+
+    def _final_passes(self, result) -> None:
+        """Write the requested passes, and denoise Combined (keeping the raw image as Noisy
+        Image), from the last film. A failed denoise keeps the raw image and says why."""
+        film = getattr(self.latest, "film", None)
+        if film is None or film.aov is None or self.camera is None:
+            return
+        from renderer.passes import film_passes
+
+        names = tuple(p.name for p in self.passes if p not in (COMBINED, NOISY_IMAGE))
+        wanted = set(names) | ({DENOISING_ALBEDO.name, DENOISING_NORMAL.name} if self.denoise else set())
+        images = film_passes(film, self.camera, tuple(sorted(wanted)))
+        for name in names:
+            write_pass(result, name, images[name])
+        if self.denoise:
+            self._denoise(result, images)
+
+    def _denoise(self, result, images: dict) -> None:
+        from renderer.denoise import DenoiseError, denoise
+
+        noisy = self.latest.image
+        alpha = self.buffer.rgba[::-1, :, 3]  # the buffer is bottom-up; passes take top-down images
+        write_pass(result, NOISY_IMAGE.name, noisy, alpha)
+        self.engine.update_stats("", "Haze | Denoising")
+        try:
+            clean = denoise(noisy, images[DENOISING_ALBEDO.name], images[DENOISING_NORMAL.name])
+        except DenoiseError as error:
+            self.engine.report({"WARNING"}, f"Haze: not denoised: {error}")
+            return
+        self.buffer.fill(clean)
 
     def _push(self, result) -> None:
         self._fill()

@@ -71,6 +71,7 @@ class HAZE_RENDER_PT_sampling(HazeRenderPanel, bpy.types.Panel):
         column.prop(settings, "target_error")
         column.prop(settings, "time_limit")
         layout.prop(settings, "seed")
+        layout.prop(settings, "use_denoising")
 
 
 class HAZE_RENDER_PT_light_paths(HazeRenderPanel, bpy.types.Panel):
@@ -111,11 +112,41 @@ class HAZE_RENDER_PT_performance(HazeRenderPanel, bpy.types.Panel):
         layout.prop(context.scene.haze, "workers")
 
 
+class HAZE_VIEWLAYER_PT_passes(bpy.types.Panel):
+    """The passes Haze renders (View Layer > Passes): the toggles are Blender's and Cycles'
+    own, so a scene set up for Cycles asks Haze for the same passes."""
+
+    bl_space_type = "PROPERTIES"
+    bl_region_type = "WINDOW"
+    bl_context = "view_layer"
+    bl_label = "Passes"
+    COMPAT_ENGINES = {ENGINE}
+
+    @classmethod
+    def poll(cls, context) -> bool:
+        return context.engine in cls.COMPAT_ENGINES
+
+    def draw(self, context) -> None:
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        view_layer = context.view_layer
+        column = layout.column(heading="Data", align=True)
+        column.prop(view_layer, "use_pass_combined")
+        column.prop(view_layer, "use_pass_z")
+        column.prop(view_layer, "use_pass_position")
+        column.prop(view_layer, "use_pass_normal")
+        cycles = getattr(view_layer, "cycles", None)
+        if cycles is not None:
+            column.prop(cycles, "denoising_store_passes", text="Denoising Data")
+
+
 CLASSES = (
     HAZE_RENDER_PT_sampling,
     HAZE_RENDER_PT_light_paths,
     HAZE_RENDER_PT_integrator,
     HAZE_RENDER_PT_performance,
+    HAZE_VIEWLAYER_PT_passes,
 )
 
 _enabled_panels: list[type] = []  # Blender panels we added HAZE to, to undo exactly that
