@@ -7,7 +7,8 @@ and values (kernel/film/read.h):
   Normal            mean world-space shading normal of the first hit, facing the camera
                     (misses count as 0)
   Denoising Normal  mean normal of the first diffuse-like hit, in Cycles' camera space
-                    (x right, y up, z forward: Blender's camera space with z flipped)
+                    (x right, y up, z forward: Blender's camera space with z flipped);
+                    (0, 0, -1) for a scatter in a medium
   Denoising Albedo  mean albedo of the first diffuse-like hit x the specular albedos passed
 
 Every image is (H, W, C) float32, row 0 at the top, like Film.image.
@@ -18,7 +19,15 @@ from __future__ import annotations
 import numpy as np
 
 from .film import Film
-from .integrator.paths import AOV_DALBEDO, AOV_DNORMAL, AOV_FIRST, AOV_HIT0, AOV_NORMAL, AOV_POSITION
+from .integrator.paths import (
+    AOV_DALBEDO,
+    AOV_DNORMAL,
+    AOV_DNORMAL_VOLUME,
+    AOV_FIRST,
+    AOV_HIT0,
+    AOV_NORMAL,
+    AOV_POSITION,
+)
 from .scene import Camera
 
 DATA_PASSES = ("Depth", "Position", "Normal")
@@ -74,7 +83,9 @@ def film_passes(film: Film, camera: Camera, names: tuple[str, ...] = DATA_PASSES
         elif name == "Normal":
             values = _mean(film, AOV_NORMAL, 3)
         elif name == "Denoising Normal":
-            values = camera_space(camera, _mean(film, AOV_DNORMAL, 3))
+            # Surfaces give world normals; a scatter in a medium gives (0, 0, -1) in camera space.
+            volume = _mean(film, AOV_DNORMAL_VOLUME, 1) * np.array([0.0, 0.0, -1.0])
+            values = camera_space(camera, _mean(film, AOV_DNORMAL, 3)) + volume
         elif name == "Denoising Albedo":
             values = _mean(film, AOV_DALBEDO, 3)
         else:

@@ -22,6 +22,8 @@ Lobe albedos are the lobe's weight x colour (Cycles' bsdf_albedo also folds in F
 microfacet lobes; Haze's plastic and rough conductor are not corrected for it).
 """
 
+import math
+
 from ..bsdfs import DIFFUSE, PLASTIC, ROUGH_CONDUCTOR, SIDE_BACK, SIDE_FRONT, TRANSPARENT
 from ..bsdfs.layout import L_COLOR, L_KIND, L_ROUGH, L_SIDES, L_WEIGHT, M_COUNT, M_FIRST
 from ..bsdfs.material import _lobe_selection
@@ -30,6 +32,8 @@ from .paths import (
     AOV_DALBEDO,
     AOV_DATA_DONE,
     AOV_DNORMAL,
+    AOV_DNORMAL_VOLUME,
+    AOV_FEAT_DEPTH,
     AOV_FEAT_DONE,
     AOV_FEAT_T,
     AOV_HIT0,
@@ -51,6 +55,29 @@ def aov_emission(L, pid, beta, le, w):
         return
     for c in range(3):
         L[pid, AOV_DALBEDO + c] += L[pid, AOV_FEAT_T + c] * le[c] * w
+
+
+@kernel
+def aov_after_medium(L, pid, depth):
+    """At the start of a path's stage: if it scattered in a medium since its features last
+    looked (its depth grew), that scatter ends them with Cycles' volume normal."""
+    if L[pid, AOV_FEAT_DONE] == 0.0 and depth > L[pid, AOV_FEAT_DEPTH]:
+        L[pid, AOV_DNORMAL_VOLUME] += 1.0
+        L[pid, AOV_FEAT_DONE] = 1.0
+
+
+@kernel
+def aov_medium_segment(L, pid, depth, beta, sa, ss, length):
+    """A homogeneous segment of `length` with summed coefficients sa, ss crossed with the
+    features open: albedo += feature throughput x beta x ss/st x (1 - exp(-st length))."""
+    aov_after_medium(L, pid, depth)
+    if L[pid, AOV_FEAT_DONE] != 0.0:
+        return
+    for c in range(3):
+        st = sa[c] + ss[c]
+        if st > 0.0:
+            single = ss[c] / st * (1.0 - math.exp(-st * length))
+            L[pid, AOV_DALBEDO + c] += L[pid, AOV_FEAT_T + c] * beta[c] * single
 
 
 @kernel
@@ -117,6 +144,7 @@ def aov_surface(L, pid, mt, m, front, x, facing, depth):
         L[pid, AOV_DALBEDO + 2] += L[pid, AOV_FEAT_T + 2] * d2
         L[pid, AOV_FEAT_DONE] = 1.0
     else:
+        L[pid, AOV_FEAT_DEPTH] = depth + 1  # the scatter at this surface is not a medium's
         L[pid, AOV_FEAT_T] *= s0
         L[pid, AOV_FEAT_T + 1] *= s1
         L[pid, AOV_FEAT_T + 2] *= s2

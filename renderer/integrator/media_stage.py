@@ -21,7 +21,9 @@ from ..kernels.vecmath import add, madd, max3, mul, scale
 from ..lights.sample import connect_light, light_has_point, light_pmf, light_point, pick_light
 from ..lights.table import LT_CDF
 from . import nee_batch
+from .aovs import aov_after_medium, aov_medium_segment
 from .config import (
+    CFG_AOVS,
     CFG_EQUIANGULAR,
     CFG_MAX_BOUNCES,
     CFG_NEE_BATCH,
@@ -148,6 +150,7 @@ def shade_media(n, ps, prim, lt, md, cfg, L, sh, nb, grid_md):
     s = np.int64(0)
     cdf = lt[LT_CDF]  # what pick_light searches: L + 1 entries
     batched = cfg[CFG_NEE_BATCH] != 0
+    aovs = cfg[CFG_AOVS] != 0  # render passes requested (integrator.aovs)
     queued = np.int64(0)
     for i in range(n):
         stack = ps.stack[i]
@@ -164,6 +167,12 @@ def shade_media(n, ps, prim, lt, md, cfg, L, sh, nb, grid_md):
         t_hit = np.float64(ps.tmax[i]) + gap if prim[i] >= 0 else RAY_FAR
         did_nee = False
         homogeneous = not stack_has_grid(md, stack)
+        if aovs:
+            if homogeneous:
+                sa, ss = stack_sigma(md, stack)
+                aov_medium_segment(L, pid, depth, beta, sa, ss, t_hit)
+            else:
+                aov_after_medium(L, pid, depth)
         wants_nee = sampling != SAMPLING_BSDF and depth <= max_bounces and cdf.shape[0] > 1
         if wants_nee and homogeneous:
             # Decoupled next-event vertex (as Cycles): a point on the segment chosen by

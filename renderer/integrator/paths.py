@@ -35,12 +35,14 @@ AOV_POSITION = 5  # sample 0's first non-transparent hit, world space (Cycles ov
 AOV_NORMAL = 8  # shading normal (facing the ray) of the first non-transparent hit, every sample
 AOV_DALBEDO = 11  # Denoising Albedo: feature throughput x diffuse-like albedo (or emission seen)
 AOV_DNORMAL = 14  # Denoising Normal, world space (renderer.passes turns it into camera space)
-AOV_COUNT = 13
-AOV_SAMPLE0 = 17  # scratch: 1 for sample 0 of its pixel (set by the wavefront)
-AOV_DATA_DONE = 18  # scratch: the data passes (position, normal) were written
-AOV_FEAT_DONE = 19  # scratch: the denoising features were written
-AOV_FEAT_T = 20  # scratch, 3 columns: feature throughput (product of the specular albedos passed)
-L_COLUMNS_AOV = 23
+AOV_DNORMAL_VOLUME = 17  # weight of Cycles' volume denoising normal, (0, 0, -1) in camera space
+AOV_COUNT = 14
+AOV_SAMPLE0 = 18  # scratch: 1 for sample 0 of its pixel (set by the wavefront)
+AOV_DATA_DONE = 19  # scratch: the data passes (position, normal) were written
+AOV_FEAT_DONE = 20  # scratch: the denoising features were written
+AOV_FEAT_T = 21  # scratch, 3 columns: feature throughput (product of the specular albedos passed)
+AOV_FEAT_DEPTH = 24  # scratch: the path's depth after the last surface the features looked at
+L_COLUMNS_AOV = 25
 
 
 @inline_kernel

@@ -34,7 +34,7 @@ from ..lights.sample import (
     triangle_light_pdf,
 )
 from ..lights.table import LT_CDF
-from .aovs import aov_background, aov_emission, aov_surface
+from .aovs import aov_after_medium, aov_background, aov_emission, aov_surface
 from .config import (
     CFG_AOVS,
     CFG_FILM_TRANSPARENT,
@@ -86,6 +86,8 @@ def shade_surface(n, ps, prim, bu, bv, geo, mt, lt, env_light, sun_rows, cfg, L,
         depth = ps.depth[i]
         p = prim[i]
         stack = ps.stack[i]
+        if aovs:
+            aov_after_medium(L, pid, depth)
 
         # --- escaped: environment and sun discs ------------------------------------------
         if p < 0:
