@@ -45,6 +45,9 @@ def _parser() -> argparse.ArgumentParser:
     )
     r.add_argument("--workers", type=int, default=os.cpu_count() or 1, help="processes (default: all cores)")
     r.add_argument("--no-png", action="store_true", help="do not write the PNG preview")
+    r.add_argument("--denoise", action="store_true",
+                   help="denoise the image with Open Image Denoise (Blender's library), guided by the "
+                   "albedo and normal passes")
     r.add_argument(
         "--overwrite", action="store_true", help="let the PNG preview replace a file Haze did not write"
     )
@@ -185,6 +188,13 @@ def render_command(args) -> int:
     if problem:
         print(f"error: {problem}", file=sys.stderr)
         return 2
+    if args.denoise:
+        from .denoise import available
+
+        if not available():
+            print("error: --denoise needs Open Image Denoise, which was not found (it comes with "
+                  "Blender's bpy module; HAZE_OIDN_LIBRARY may name the library)", file=sys.stderr)
+            return 2
     scene, inputs = load_scene_and_inputs(args.scene)
     problem = _outputs_problem(args, inputs)
     if problem:
@@ -207,6 +217,7 @@ def _render_and_write(args, scene) -> int:
         s.seed = args.seed
     if args.max_bounces is not None:
         s.max_bounces = args.max_bounces
+    scene.film.aovs = bool(args.denoise)  # the denoiser's albedo and normal passes
     t0 = time.perf_counter()
     last = None
     interrupted = False
@@ -226,11 +237,12 @@ def _render_and_write(args, scene) -> int:
     if last is None:
         print("error: no samples were rendered", file=sys.stderr)
         return EXIT_INTERRUPTED if interrupted else 1
-    write_exr(args.output, last.image)
+    image = _denoised(last, scene.camera) if args.denoise else last.image
+    write_exr(args.output, image)
     msg = f"wrote {args.output}"
     if not args.no_png:
         png = args.output.with_suffix(".png")
-        write_png(png, last.image)
+        write_png(png, image)
         msg += f" and {png}"
     seconds = time.perf_counter() - t0
     samples = last.spp * last.film.width * last.film.height  # the rendered window's pixels
@@ -240,6 +252,16 @@ def _render_and_write(args, scene) -> int:
         print(f"warning: {bad} path values were NaN or infinite and were counted as 0", file=sys.stderr)
     print(f"{last.spp} spp, {seconds:.2f} s, {samples / seconds / 1e6:.3f} M samples/s", file=sys.stderr)
     return EXIT_INTERRUPTED if interrupted else 0
+
+
+def _denoised(last, camera):
+    """The final image denoised by OIDN with the film's Denoising Albedo and Normal passes."""
+    from .denoise import denoise
+    from .passes import film_passes
+
+    passes = film_passes(last.film, camera, ("Denoising Albedo", "Denoising Normal"))
+    print("denoising", file=sys.stderr)
+    return denoise(last.image, passes["Denoising Albedo"], passes["Denoising Normal"])
 
 
 def main(argv: list[str] | None = None) -> int:

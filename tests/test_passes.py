@@ -80,3 +80,22 @@ def test_denoising_cuts_the_fog_box_error_fivefold():
     print(f"relMSE at 16 spp: raw {raw_error:.4g}, denoised {clean_error:.4g} "
           f"({raw_error / clean_error:.1f}x lower)")
     assert clean_error * 5.0 <= raw_error
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not available(), reason="Open Image Denoise not found")
+def test_command_line_denoise(tmp_path):
+    from renderer import cli
+    from renderer.imageio import read_exr
+    from renderer.scenefile import save_scene
+
+    folder = tmp_path / "fog"
+    save_scene(cornell_fog(size=32, spp=4), folder)
+    raw, clean = tmp_path / "raw.exr", tmp_path / "clean.exr"
+    common = ["--workers", "1", "--no-png", "--seed", "3"]
+    assert cli.main(["render", str(folder), "-o", str(raw), *common]) == 0
+    assert cli.main(["render", str(folder), "-o", str(clean), "--denoise", *common]) == 0
+    raw_image, clean_image = read_exr(raw), read_exr(clean)
+    # Smoother: the denoised image's pixel-to-pixel differences are far smaller.
+    roughness = [float(np.abs(np.diff(im, axis=1)).mean()) for im in (raw_image, clean_image)]
+    assert roughness[1] < 0.5 * roughness[0]
