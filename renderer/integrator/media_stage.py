@@ -51,6 +51,7 @@ from .media_api import (
     stack_sigma,
 )
 from .paths import (
+    AOV_FEAT_DONE,
     PATH_DEAD,
     PATH_SCATTERED,
     RAY_FAR,
@@ -167,7 +168,7 @@ def shade_media(n, ps, prim, lt, md, cfg, L, sh, nb, grid_md):
         t_hit = np.float64(ps.tmax[i]) + gap if prim[i] >= 0 else RAY_FAR
         did_nee = False
         homogeneous = not stack_has_grid(md, stack)
-        if aovs:
+        if aovs and L[pid, AOV_FEAT_DONE] == 0.0:  # only while the denoising features are open
             if homogeneous:
                 sa, ss = stack_sigma(md, stack)
                 aov_medium_segment(L, pid, depth, beta, sa, ss, t_hit)

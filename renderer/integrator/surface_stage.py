@@ -48,6 +48,8 @@ from .dims import SHADOW_DIMS
 from .media_api import stack_push, stack_remove
 from .paths import (
     ALPHA,
+    AOV_DATA_DONE,
+    AOV_FEAT_DONE,
     PATH_ACTIVE,
     PATH_DEAD,
     RAY_FAR,
@@ -86,7 +88,9 @@ def shade_surface(n, ps, prim, bu, bv, geo, mt, lt, env_light, sun_rows, cfg, L,
         depth = ps.depth[i]
         p = prim[i]
         stack = ps.stack[i]
-        if aovs:
+        # Pass work only while the path still has a pass to write (its first hits).
+        aov_open = aovs and (L[pid, AOV_FEAT_DONE] == 0.0 or (depth == 0 and L[pid, AOV_DATA_DONE] == 0.0))
+        if aov_open:
             aov_after_medium(L, pid, depth)
 
         # --- escaped: environment and sun discs ------------------------------------------
@@ -103,9 +107,9 @@ def shade_surface(n, ps, prim, bu, bv, geo, mt, lt, env_light, sun_rows, cfg, L,
             if max3(le) > 0.0:
                 w = hit_weight(ps.mis_pdf[i], pdf_light, sampling)
                 add_weighted_radiance(L, pid, beta, le, w)
-                if aovs:
+                if aov_open:
                     aov_emission(L, pid, beta, le, w)
-            if aovs:
+            if aov_open:
                 aov_background(L, pid)
             ps.alive[i] = PATH_DEAD
             continue
@@ -129,13 +133,13 @@ def shade_surface(n, ps, prim, bu, bv, geo, mt, lt, env_light, sun_rows, cfg, L,
                     pdf_light = triangle_light_pdf(lt, light, load3(ps.mis_o, i), x, dot(d, ng))
                     w = hit_weight(ps.mis_pdf[i], pdf_light, sampling)
                 add_weighted_radiance(L, pid, beta, le, w)
-                if aovs:
+                if aov_open:
                     aov_emission(L, pid, beta, le, w)
 
         if not bsdf_has_lobes(mt, m, front):
             if light >= 0:
                 # A pure emitter (Cycles' Emission shader): black, opaque.
-                if aovs:
+                if aov_open:
                     sn = _shading_normal(geo, p, b0, b1, b2, ng)
                     aov_surface(L, pid, mt, m, front, x, sn if front else neg(sn), depth)
                 ps.alive[i] = PATH_DEAD
@@ -145,7 +149,7 @@ def shade_surface(n, ps, prim, bu, bv, geo, mt, lt, env_light, sun_rows, cfg, L,
             ps.dim[i] = dim
             continue
         sn = _shading_normal(geo, p, b0, b1, b2, ng)
-        if aovs:
+        if aov_open:
             aov_surface(L, pid, mt, m, front, x, sn if front else neg(sn), depth)
         if depth > max_bounces:
             ps.alive[i] = PATH_DEAD
