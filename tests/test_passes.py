@@ -47,6 +47,16 @@ def test_unrequested_passes_cost_nothing():
 
 
 @pytest.mark.slow
+def test_passes_leave_the_image_unchanged():
+    """Recording the passes draws no random numbers and adds no radiance: the same image."""
+    for make in (cornell_box, cornell_fog):
+        scene = make(size=16, spp=2)
+        plain = render_film(scene).image()
+        scene.film.aovs = True
+        np.testing.assert_array_equal(render_film(scene).image(), plain)
+
+
+@pytest.mark.slow
 def test_passes_merge_across_workers_and_read_back():
     scene = cornell_box(size=16, spp=4)
     scene.film.aovs = True
