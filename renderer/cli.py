@@ -105,7 +105,7 @@ def render_command(args) -> int:
     ticker = CompileTicker()
     try:
         for last in render_progressive(scene, workers=args.workers, target_error=args.target_error,
-                                       on_compile=ticker.start):
+                                       on_compile=ticker.start, in_process=False):
             ticker.stop()
             line = _bar(last.spp, s.spp, last.elapsed, last.error_estimate)
             print(line, end="", file=sys.stderr, flush=True)
@@ -126,6 +126,8 @@ def render_command(args) -> int:
     seconds = time.perf_counter() - t0
     samples = last.spp * scene.film.width * scene.film.height
     print(msg, file=sys.stderr)
+    if last.note:
+        print(f"warning: {last.note}", file=sys.stderr)
     if last.film.nonfinite[0]:
         bad = int(last.film.nonfinite[0])
         print(f"warning: {bad} path values were NaN or infinite and were counted as 0", file=sys.stderr)

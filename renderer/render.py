@@ -1,24 +1,47 @@
-"""Progressive rendering: a generator of passes over disjoint sample ranges.
+"""Progressive rendering: fixed units of work, traced anywhere, merged in unit order.
 
-Each pass adds a chunk of samples per pixel to the film; the caller sees the image after
-every pass and may stop at any time (closing the generator stops the workers). Because a
-path's random numbers depend only on (seed, pixel, sample index), chunks can be traced in
-any process and merged: the image does not depend on the number of workers or the batch
-size (up to the order of floating-point sums).
+A path's random numbers depend only on (seed, pixel, sample index), so a render is cut
+into units, each a range of sample indices for every pixel (`plan_units`). Their sizes
+depend only on the image size and the sample count, never on timing, and the film adds
+them in unit order, so the image is bit-identical whatever the number of workers and equal
+to the single-process render of the same seed. A unit that finishes before its
+predecessors waits in a small buffer; the caller sees the image after every merge and may
+stop at any time. A render that stops early (time limit, target error, Ctrl-C) first
+merges every finished unit, so no finished sample is lost, and the film counts exactly
+the samples it holds.
 
 Embree holds Python's lock while it traces, so the second core needs a second process.
+The worker processes (spawned, as Blender requires) persist across renders in this
+process: the next render or animation frame reuses them, and the scene reaches each
+worker once (a pickle in a temporary file, named by a hash of its contents; a worker
+builds its tracer only for a scene it has not got). The parent watches the clock: a worker
+still inside a unit when the time limit passes (one numba kernel call cannot be
+interrupted, and a pathological scene may stay in one for hours), or when the render is
+cancelled, is terminated and the pool is refilled by the next render. A worker that dies
+costs only its unit, which is traced again by a new worker.
 """
 
 from __future__ import annotations
 
+import atexit
+import dataclasses
+import hashlib
 import math
 import multiprocessing
 import os
+import pickle
+import signal
 import sys
+import tempfile
 import time
+import traceback
 from collections.abc import Callable, Iterator
-from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from contextlib import contextmanager
 from dataclasses import dataclass
+from multiprocessing.connection import Connection
+from multiprocessing.connection import wait as wait_for
+from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
@@ -27,7 +50,15 @@ from .film import Film
 from .integrator.wavefront import Tracer
 from .scene import IntegratorSettings, Scene
 
-PASS_SECONDS = 0.5  # aim for a pass about this long: responsive progress, small overhead
+# Unit size rule: about UNIT_PATHS path samples per unit, i.e. max(1, UNIT_PATHS // pixels)
+# samples per pixel (a fraction of a second on the example scenes: the fog box traces
+# about 1-2 M paths/s per core). The first units are smaller (1, 1, 2, 4, ... spp up to that
+# size) so that the first image comes quickly and both of two workers start at once.
+UNIT_PATHS = 1 << 18
+# After a stop (time limit, target error), units in flight get this long to finish before
+# their workers are terminated: long enough for a normal unit, short enough for "about a second".
+STOP_GRACE = 0.5
+MAX_ATTEMPTS = 3  # a unit whose worker died this many times is given up (the render stops)
 
 
 @dataclass
@@ -38,6 +69,27 @@ class Progress:
     elapsed: float  # seconds since the render started (scene compile included)
     error_estimate: float  # estimated relMSE of `image` (nan before 2 spp)
     film: Film
+    note: str = ""  # why the render stopped short of spp_target when that was not asked for
+
+
+class Unit(NamedTuple):
+    index: int  # merge order
+    first_sample: int
+    samples: int  # samples per pixel in this unit
+
+
+def plan_units(width: int, height: int, spp: int) -> list[Unit]:
+    """The render's units (see UNIT_PATHS): a function of the image size and spp only."""
+    full = max(1, UNIT_PATHS // max(1, width * height))
+    units: list[Unit] = []
+    start, size = 0, 1
+    while start < spp:
+        count = min(size, full, spp - start)
+        units.append(Unit(len(units), start, count))
+        start += count
+        if len(units) >= 2:  # 1, 1, 2, 4, ...: two small units first, one per worker of two
+            size *= 2
+    return units
 
 
 def _validate(scene: Scene) -> None:
@@ -46,98 +98,116 @@ def _validate(scene: Scene) -> None:
     validate_scene(scene)
 
 
-class _Chunker:
-    """Sizes passes from the measured time per sample so each lasts about PASS_SECONDS."""
-
-    def __init__(self, target: int, workers: int = 1):
-        self.target = target
-        self.workers = workers
-        self.next = 0  # first sample index not yet handed out
-        self.seconds_per_spp = math.nan
-
-    def take(self, time_left: float) -> tuple[int, int] | None:
-        if self.next >= self.target:
-            return None
-        if math.isnan(self.seconds_per_spp):
-            k = 1
-        else:
-            budget = min(PASS_SECONDS, time_left) if time_left > 0 else PASS_SECONDS
-            k = max(1, int(budget / max(self.seconds_per_spp, 1e-9)))
-        remaining = self.target - self.next
-        # Near the end, split what is left evenly so no worker idles while another finishes.
-        k = min(k, max(1, -(-remaining // self.workers)))
-        start = self.next
-        self.next += k
-        return start, k
-
-    def measured(self, spp: int, seconds: float) -> None:
-        if spp > 0:
-            s = seconds / spp
-            self.seconds_per_spp = s if math.isnan(self.seconds_per_spp) else 0.5 * (self.seconds_per_spp + s)
-
-
 def render_progressive(scene: Scene, workers: int = 1, target_error: float = 0.0,
-                       validate: bool = True, on_compile: Callable[[list[str]], None] | None = None
-                       ) -> Iterator[Progress]:
-    """Render `scene`, yielding after every pass. Stops at scene.integrator.spp samples,
-    at scene.integrator.time_limit seconds (if > 0) or once the estimated relMSE falls
-    below target_error (if > 0). on_compile(kernel names) is called when this process must
-    compile the scene's kernels first (worker processes announce it on stderr instead)."""
+                       validate: bool = True, on_compile: Callable[[list[str]], None] | None = None,
+                       in_process: bool | None = None) -> Iterator[Progress]:
+    """Render `scene`, yielding after every merge of units. Stops at scene.integrator.spp
+    samples, at scene.integrator.time_limit seconds (if > 0) or once the estimated relMSE
+    falls below target_error (if > 0). on_compile(kernel names) is called (in this process,
+    while the generator runs) when kernels must be compiled first.
+
+    in_process: trace in this process (True) or in the worker pool (False). By default
+    (None) one worker without a time limit runs in this process, which starts fastest and
+    lets tests observe the kernels; but a numba kernel cannot be interrupted there, so
+    neither Ctrl-C nor a time limit can stop a pathological scene. The pool enforces both."""
     t0 = time.perf_counter()
     if validate:
         _validate(scene)
     cs = compile_scene(scene)
     settings = scene.integrator
     film = Film(cs.width, cs.height)
-    chunker = _Chunker(settings.spp, max(1, workers))
-    if workers <= 1:
-        yield from _render_here(cs, settings, film, chunker, t0, target_error, on_compile)
+    units = plan_units(cs.width, cs.height, settings.spp)
+    if in_process is None:
+        in_process = workers <= 1 and settings.time_limit <= 0
+    if in_process:
+        yield from _render_here(cs, settings, film, units, t0, target_error, on_compile)
     else:
-        yield from _render_in_workers(cs, settings, film, chunker, t0, target_error, workers)
+        run = _PoolRender(cs, settings, film, units, t0, target_error, max(1, workers), on_compile)
+        yield from run.frames()
 
 
-def _should_stop(settings: IntegratorSettings, film: Film, t0: float, target_error: float) -> bool:
-    if settings.time_limit > 0 and time.perf_counter() - t0 >= settings.time_limit:
-        return True
+def _target_reached(film: Film, target_error: float) -> bool:
     if target_error > 0 and film.spp >= 4:
         err = film.rel_mse_estimate()
-        if not math.isnan(err) and err <= target_error:
-            return True
+        return not math.isnan(err) and err <= target_error
     return False
 
 
-def _time_left(settings: IntegratorSettings, t0: float) -> float:
-    return settings.time_limit - (time.perf_counter() - t0) if settings.time_limit > 0 else 0.0
-
-
-def _progress(film: Film, settings: IntegratorSettings, t0: float) -> Progress:
+def _progress(film: Film, settings: IntegratorSettings, t0: float, note: str = "") -> Progress:
     return Progress(film.image(), film.spp, settings.spp, time.perf_counter() - t0, film.rel_mse_estimate(),
-                    film)
+                    film, note)
 
 
-def _render_here(cs, settings, film, chunker, t0, target_error, on_compile) -> Iterator[Progress]:
+def _trace_unit(tracer: Tracer, unit: Unit, seed: int) -> Film:
+    """One unit into a film of its own: merged by addition, in unit order, wherever traced."""
+    part = Film(tracer.cs.width, tracer.cs.height)
+    tracer.trace(part, unit.first_sample, unit.samples, seed)
+    return part
+
+
+def _render_here(cs: CompiledScene, settings: IntegratorSettings, film: Film, units: list[Unit], t0: float,
+                 target_error: float, on_compile) -> Iterator[Progress]:
     tracer = Tracer(cs, settings, on_compile)
-    while True:
-        chunk = chunker.take(_time_left(settings, t0))
-        if chunk is None:
-            return
-        start, k = chunk
-        t = time.perf_counter()
-        tracer.trace(film, start, k, settings.seed)
-        chunker.measured(k, time.perf_counter() - t)
+    for unit in units:
+        film.add(_trace_unit(tracer, unit, settings.seed))
         yield _progress(film, settings, t0)
-        if _should_stop(settings, film, t0, target_error):
+        out_of_time = settings.time_limit > 0 and time.perf_counter() - t0 >= settings.time_limit
+        if out_of_time or _target_reached(film, target_error):
             return
+
+
+class _UnitMerger:
+    """Adds finished units to the film in unit order; later ones wait in a buffer."""
+
+    def __init__(self, film: Film):
+        self.film = film
+        self.next = 0  # index of the next unit to merge
+        self.waiting: dict[int, Film] = {}
+
+    def add(self, index: int, part: Film) -> bool:
+        """Buffer a finished unit; True if the film changed (its predecessors were all in)."""
+        self.waiting[index] = part
+        merged = False
+        while self.next in self.waiting:
+            self.film.add(self.waiting.pop(self.next))
+            self.next += 1
+            merged = True
+        return merged
+
+    def merge_the_rest(self) -> bool:
+        """On an early stop: merge every finished unit, in unit order, gaps and all."""
+        merged = bool(self.waiting)
+        for index in sorted(self.waiting):
+            self.film.add(self.waiting.pop(index))
+        return merged
+
+
+# --- the scene, shipped to workers ------------------------------------------------------
+
+
+class _Shipment(NamedTuple):
+    key: str  # hash of the pickle: a worker that holds this key already has the tracer
+    path: str
+
+
+@contextmanager
+def _shipped(cs: CompiledScene, settings: IntegratorSettings) -> Iterator[_Shipment]:
+    """The scene pickled once to a temporary file for the workers, removed after the render."""
+    # Fields a tracer does not read are normalised, so another seed, spp or time limit of
+    # the same scene does not make the workers rebuild their tracers.
+    tracer_settings = dataclasses.replace(settings, seed=0, spp=1, time_limit=0.0)
+    data = pickle.dumps((cs, tracer_settings), protocol=pickle.HIGHEST_PROTOCOL)
+    key = hashlib.blake2b(data, digest_size=16).hexdigest()
+    fd, path = tempfile.mkstemp(prefix=f"haze-scene-{key[:8]}-", suffix=".pkl")
+    try:
+        with os.fdopen(fd, "wb") as f:
+            f.write(data)
+        yield _Shipment(key, path)
+    finally:
+        Path(path).unlink(missing_ok=True)
 
 
 # --- worker processes -------------------------------------------------------------------
-
-_worker_tracer: Tracer | None = None
-
-
-def _worker_init(cs: CompiledScene, settings: IntegratorSettings) -> None:
-    global _worker_tracer
-    _worker_tracer = Tracer(cs, settings, announce_compile)
 
 
 def announce_compile(names: list[str]) -> None:
@@ -145,53 +215,289 @@ def announce_compile(names: list[str]) -> None:
     print(f"haze: compiling kernels (first run only): {', '.join(names)}", file=sys.stderr, flush=True)
 
 
-def _worker_trace(start: int, k: int, seed: int):
-    assert _worker_tracer is not None
-    cs = _worker_tracer.cs
-    film = Film(cs.width, cs.height)
-    t = time.perf_counter()
-    _worker_tracer.trace(film, start, k, seed)
-    return film, k, time.perf_counter() - t
+def _worker_main(conn: Connection) -> None:
+    """A worker: trace the units it is sent, keeping the tracer of the last scene."""
+    # Ctrl-C reaches the whole process group; the parent decides what stops, and a worker
+    # interrupted mid-unit would only print a traceback.
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    key, tracer = None, None
+    while True:
+        try:
+            task = conn.recv()
+        except (EOFError, OSError):
+            return  # the parent is gone
+        if task is None:
+            return
+        shipment, unit, seed = task
+        try:
+            if shipment.key != key:
+                tracer = None  # free the old scene before loading the new one
+                tracer = _load_tracer(shipment, conn)
+                key = shipment.key
+            conn.send(("done", unit.index, _trace_unit(tracer, unit, seed)))
+        except Exception as error:  # reported to the parent, which raises it there
+            conn.send(("error", unit.index, _picklable(error), traceback.format_exc()))
 
 
-def _render_in_workers(cs, settings, film, chunker, t0, target_error, workers) -> Iterator[Progress]:
-    ctx = multiprocessing.get_context("spawn")
-    pool = ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_worker_init,
-                               initargs=(cs, settings))
-    pending = set()
-    stopping = False
+def _load_tracer(shipment: _Shipment, conn: Connection) -> Tracer:
+    with open(shipment.path, "rb") as f:
+        cs, settings = pickle.load(f)
+    tracer = Tracer(cs, settings, lambda names: conn.send(("compile", names)))
+    conn.send(("ready",))
+    return tracer
+
+
+def _picklable(error: Exception) -> Exception:
     try:
+        pickle.loads(pickle.dumps(error))
+        return error
+    except Exception:
+        return RuntimeError(f"{type(error).__name__}: {error}")
+
+
+class _Worker:
+    def __init__(self) -> None:
+        ctx = multiprocessing.get_context("spawn")  # Blender cannot fork; spawn everywhere alike
+        self.conn, child = ctx.Pipe()
+        self.process = ctx.Process(target=_worker_main, args=(child,), daemon=True, name="haze-worker")
+        self.process.start()
+        child.close()
+        self.unit: Unit | None = None  # the unit in flight
+        self.compiling = False
+
+    def send(self, shipment: _Shipment, unit: Unit, seed: int) -> None:
+        self.unit = unit
+        self.conn.send((shipment, unit, seed))
+
+    def alive(self) -> bool:
+        return self.process.is_alive()
+
+    def stop(self, terminate: bool) -> None:
+        """End the process: politely when idle, at once when it may be inside a kernel."""
+        if not terminate and self.alive():
+            try:
+                self.conn.send(None)
+            except OSError:
+                terminate = True
+        if terminate and self.alive():
+            self.process.terminate()
+        self.process.join(timeout=5)
+        if self.process.is_alive():
+            self.process.kill()
+            self.process.join(timeout=5)
+        self.conn.close()
+
+
+class _Pool:
+    """The persistent workers of this process."""
+
+    def __init__(self) -> None:
+        self.workers: list[_Worker] = []
+
+    def resize(self, n: int) -> None:
+        for dead in [w for w in self.workers if not w.alive()]:
+            dead.stop(terminate=True)  # reaps it and closes its pipe
+            self.workers.remove(dead)
+        while len(self.workers) > n:
+            self.workers.pop().stop(terminate=False)
+        while len(self.workers) < n:
+            self.workers.append(_Worker())
+
+    def idle(self) -> list[_Worker]:
+        return [w for w in self.workers if w.unit is None]
+
+    def busy(self) -> list[_Worker]:
+        return [w for w in self.workers if w.unit is not None]
+
+    def replace(self, worker: _Worker) -> None:
+        """A new process in place of `worker`, which is terminated if still running."""
+        worker.stop(terminate=True)
+        self.workers[self.workers.index(worker)] = _Worker()
+
+    def terminate_busy(self) -> None:
+        """Stop units in flight (their results would reach the next render otherwise)."""
+        for worker in self.busy():
+            worker.stop(terminate=True)
+        self.workers = [w for w in self.workers if w.unit is None]
+
+    def events(self, timeout: float) -> list[tuple[_Worker, tuple | None]]:
+        """Messages from busy workers, (worker, None) for one that died; [] on timeout."""
+        busy = self.busy()
+        handles = {}
+        for w in busy:
+            handles[w.conn] = w
+            handles[w.process.sentinel] = w
+        ready = wait_for(list(handles), timeout=max(0.0, timeout))
+        out: list[tuple[_Worker, tuple | None]] = []
+        for w in dict.fromkeys(handles[h] for h in ready):  # each worker once, in order
+            try:
+                # A worker that sent its result and then died still delivers the result.
+                while w.conn.poll():
+                    out.append((w, w.conn.recv()))
+            except (EOFError, OSError):
+                pass
+            if not w.alive():
+                out.append((w, None))  # after its messages: a unit it finished is not lost
+        return out
+
+    def pids(self) -> list[int]:
+        return [w.process.pid for w in self.workers if w.alive() and w.process.pid is not None]
+
+    def shutdown(self) -> None:
+        for worker in self.workers:
+            worker.stop(terminate=worker.unit is not None)
+        self.workers = []
+
+
+_pool = _Pool()
+
+
+def shutdown_workers() -> None:
+    """Stop the worker processes (the add-on calls this when it is disabled; also at exit)."""
+    _pool.shutdown()
+
+
+def worker_pids() -> list[int]:
+    """Process ids of the live workers (a later render reuses them)."""
+    return _pool.pids()
+
+
+atexit.register(shutdown_workers)
+
+
+class _Clock:
+    """The time limit, paused while a worker compiles kernels (first run only): a limit of
+    seconds must not stop a render before its first sample, or the compile forever."""
+
+    def __init__(self, settings: IntegratorSettings, t0: float):
+        self.deadline = t0 + settings.time_limit if settings.time_limit > 0 else math.inf
+        self.paused_at: float | None = None
+
+    def pause(self, compiling: bool) -> None:
+        now = time.perf_counter()
+        if compiling and self.paused_at is None:
+            self.paused_at = now
+        elif not compiling and self.paused_at is not None:
+            self.deadline += now - self.paused_at
+            self.paused_at = None
+
+    def left(self) -> float:
+        return math.inf if self.paused_at is not None else self.deadline - time.perf_counter()
+
+
+class _PoolRender:
+    """One render on the persistent pool: hand out units, merge results, enforce the stops."""
+
+    def __init__(self, cs: CompiledScene, settings: IntegratorSettings, film: Film, units: list[Unit],
+                 t0: float, target_error: float, workers: int, on_compile):
+        self.cs, self.settings, self.film, self.t0 = cs, settings, film, t0
+        self.todo = list(units)  # kept in unit order: a retried unit goes back to its place
+        self.target_error = target_error
+        self.workers = workers
+        self.on_compile = on_compile or announce_compile
+        self.announced = False
+        self.merger = _UnitMerger(film)
+        self.clock = _Clock(settings, t0)
+        self.attempts: dict[int, int] = {}
+        self.stop_at = math.inf  # when units still in flight are given up
+        self.note = ""
+        self.yielded = False  # whether the caller has an image yet
+
+    def frames(self) -> Iterator[Progress]:
+        with _shipped(self.cs, self.settings) as shipment:
+            try:
+                yield from self._run(shipment)
+            except KeyboardInterrupt:
+                # Show the finished units before the interrupt goes on to the caller.
+                _pool.terminate_busy()
+                if self.merger.merge_the_rest():
+                    yield self._progress()
+                raise
+            finally:
+                _pool.terminate_busy()  # a cancelled render leaves no unit in flight
+
+    def _run(self, shipment: _Shipment) -> Iterator[Progress]:
+        _pool.resize(self.workers)
         while True:
-            while not stopping and len(pending) < workers:
-                chunk = chunker.take(_time_left(settings, t0) / 1.0)
-                if chunk is None:
-                    break
-                pending.add(pool.submit(_worker_trace, chunk[0], chunk[1], settings.seed))
-            if not pending:
+            if self._stopping():
+                self.stop_at = min(self.stop_at, time.perf_counter() + STOP_GRACE)
+            else:
+                self._hand_out(shipment)
+            if not _pool.busy():
+                break
+            if time.perf_counter() >= self.stop_at:
+                self._give_up_units_in_flight()
+                break
+            if self._handle(_pool.events(self._wait_time())):
+                self.yielded = True
+                yield self._progress()
+        # The pool is refilled by the next render (lazily: an exiting CLI must not wait for
+        # new processes to start).
+        if self.merger.merge_the_rest() or self.note or not self.yielded:
+            yield self._progress()
+
+    def _give_up_units_in_flight(self) -> None:
+        if self.film.spp == 0 and not self.merger.waiting:
+            self.note = "the time limit passed before the first samples were done"
+        _pool.terminate_busy()
+
+    def _stopping(self) -> bool:
+        return bool(self.note) or self.clock.left() <= 0 or _target_reached(self.film, self.target_error)
+
+    def _hand_out(self, shipment: _Shipment) -> None:
+        for worker in _pool.idle():
+            if not self.todo:
                 return
-            done, pending = wait(pending, return_when=FIRST_COMPLETED)
-            for fut in done:
-                part, k, seconds = fut.result()
-                film.add(part)
-                chunker.measured(k, seconds)
-            yield _progress(film, settings, t0)
-            if _should_stop(settings, film, t0, target_error):
-                stopping = True
-                if not pending:
-                    return
-    finally:
-        _shutdown(pool)
+            worker.send(shipment, self.todo.pop(0), self.settings.seed)
 
+    def _wait_time(self) -> float:
+        return min(self.clock.left(), self.stop_at - time.perf_counter(), 3600.0)
 
-def _shutdown(pool: ProcessPoolExecutor) -> None:
-    """Stop workers at once (a cancelled render must not wait for passes in flight)."""
-    processes = list(getattr(pool, "_processes", {}).values())
-    pool.shutdown(wait=False, cancel_futures=True)
-    for p in processes:
-        if p.is_alive():
-            p.terminate()
-    for p in processes:
-        p.join(timeout=5)
+    def _handle(self, events: list[tuple[_Worker, tuple | None]]) -> bool:
+        """Act on the workers' messages; True if the film changed."""
+        merged = False
+        for worker, message in events:
+            if message is None:
+                self._lost(worker)
+            elif message[0] == "compile":
+                self._compiling(worker, True, message[1])
+            elif message[0] == "ready":
+                self._compiling(worker, False)
+            elif message[0] == "done":
+                worker.unit = None
+                merged |= self.merger.add(message[1], message[2])
+            elif message[0] == "error":
+                worker.unit = None
+                raise message[2] from RuntimeError(f"in a worker process:\n{message[3]}")
+        return merged
+
+    def _compiling(self, worker: _Worker, compiling: bool, names: list[str] | None = None) -> None:
+        worker.compiling = compiling
+        if names and not self.announced:
+            self.announced = True
+            self.on_compile(names)
+        self.clock.pause(any(w.compiling for w in _pool.workers))
+
+    def _lost(self, worker: _Worker) -> None:
+        """A worker died: its unit goes back to the queue and a new process takes its place."""
+        unit = worker.unit
+        code = worker.process.exitcode
+        worker.unit, worker.compiling = None, False
+        _pool.replace(worker)
+        self.clock.pause(any(w.compiling for w in _pool.workers))
+        if unit is None:
+            return
+        self.attempts[unit.index] = self.attempts.get(unit.index, 0) + 1
+        if self.attempts[unit.index] >= MAX_ATTEMPTS:
+            self.note = (f"worker processes died {MAX_ATTEMPTS} times tracing samples {unit.first_sample}.."
+                         f"{unit.first_sample + unit.samples - 1} (last exit code {code}); stopped with the"
+                         " samples done")
+            return
+        self.todo.append(unit)
+        self.todo.sort()
+
+    def _progress(self) -> Progress:
+        return _progress(self.film, self.settings, self.t0, self.note)
 
 
 def render(scene: Scene, workers: int = 1) -> np.ndarray:
