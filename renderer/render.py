@@ -267,7 +267,10 @@ class _Worker:
 
     def send(self, shipment: _Shipment, unit: Unit, seed: int) -> None:
         self.unit = unit
-        self.conn.send((shipment, unit, seed))
+        try:
+            self.conn.send((shipment, unit, seed))
+        except OSError:
+            pass  # it died: its sentinel says so at the next wait, and the unit is retried
 
     def alive(self) -> bool:
         return self.process.is_alive()
@@ -445,6 +448,7 @@ class _PoolRender:
         return bool(self.note) or self.clock.left() <= 0 or _target_reached(self.film, self.target_error)
 
     def _hand_out(self, shipment: _Shipment) -> None:
+        _pool.resize(self.workers)  # replaces idle workers that died since (killed, out of memory)
         for worker in _pool.idle():
             if not self.todo:
                 return
