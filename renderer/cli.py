@@ -82,14 +82,18 @@ class CompileTicker:
 
 
 def render_command(args) -> int:
-    from .imageio import write_exr, write_png
-    from .render import render_progressive
-    from .scenefile import load_scene
+    from .workers import start_workers
 
     problem = _check(args)
     if problem:
         print(f"error: {problem}", file=sys.stderr)
         return 2
+    # Before numba loads here: the workers' start overlaps this process's imports and loading.
+    start_workers(args.workers)
+    from .imageio import write_exr, write_png
+    from .render import render_progressive
+    from .scenefile import load_scene
+
     scene = load_scene(args.scene)
     s = scene.integrator
     if args.spp is not None:

@@ -11,36 +11,21 @@ merges every finished unit, so no finished sample is lost, and the film counts e
 the samples it holds.
 
 Embree holds Python's lock while it traces, so the second core needs a second process.
-The worker processes (spawned, as Blender requires) persist across renders in this
-process: the next render or animation frame reuses them, and the scene reaches each
-worker once (a pickle in a temporary file, named by a hash of its contents; a worker
-builds its tracer only for a scene it has not got). The parent watches the clock: a worker
-still inside a unit when the time limit passes (one numba kernel call cannot be
-interrupted, and a pathological scene may stay in one for hours), or when the render is
-cancelled, is terminated and the pool is refilled by the next render. A worker that dies
-costs only its unit, which is traced again by a new worker.
+The worker processes (renderer.workers) persist across renders in this process and get
+each scene once. The parent watches the clock: a worker still inside a unit when the time
+limit passes (one numba kernel call cannot be interrupted, and a pathological scene may
+stay in one for hours), or when the render is cancelled, is terminated, and the next
+render starts a new one. A worker that dies costs only its unit, which another traces again.
 """
 
 from __future__ import annotations
 
-import atexit
-import dataclasses
-import hashlib
 import math
-import multiprocessing
 import os
-import pickle
-import signal
 import sys
-import tempfile
 import time
-import traceback
 from collections.abc import Callable, Iterator
-from contextlib import contextmanager
 from dataclasses import dataclass
-from multiprocessing.connection import Connection
-from multiprocessing.connection import wait as wait_for
-from pathlib import Path
 from typing import NamedTuple
 
 import numpy as np
@@ -49,6 +34,10 @@ from .compile import CompiledScene, compile_scene
 from .film import Film
 from .integrator.wavefront import Tracer
 from .scene import IntegratorSettings, Scene
+from .workers import Shipment, Worker, pool, shipped, shutdown_workers, start_workers, worker_pids
+
+__all__ = ["Progress", "Unit", "default_workers", "plan_units", "render", "render_progressive",
+           "shutdown_workers", "start_workers", "worker_pids"]
 
 # Unit size rule: about UNIT_PATHS path samples per unit, i.e. max(1, UNIT_PATHS // pixels)
 # samples per pixel (a fraction of a second on the example scenes: the fog box traces
@@ -138,7 +127,7 @@ def _progress(film: Film, settings: IntegratorSettings, t0: float, note: str = "
                     film, note)
 
 
-def _trace_unit(tracer: Tracer, unit: Unit, seed: int) -> Film:
+def trace_unit(tracer: Tracer, unit: Unit, seed: int) -> Film:
     """One unit into a film of its own: merged by addition, in unit order, wherever traced."""
     part = Film(tracer.cs.width, tracer.cs.height)
     tracer.trace(part, unit.first_sample, unit.samples, seed)
@@ -149,7 +138,7 @@ def _render_here(cs: CompiledScene, settings: IntegratorSettings, film: Film, un
                  target_error: float, on_compile) -> Iterator[Progress]:
     tracer = Tracer(cs, settings, on_compile)
     for unit in units:
-        film.add(_trace_unit(tracer, unit, settings.seed))
+        film.add(trace_unit(tracer, unit, settings.seed))
         yield _progress(film, settings, t0)
         out_of_time = settings.time_limit > 0 and time.perf_counter() - t0 >= settings.time_limit
         if out_of_time or _target_reached(film, target_error):
@@ -182,190 +171,9 @@ class _UnitMerger:
         return merged
 
 
-# --- the scene, shipped to workers ------------------------------------------------------
-
-
-class _Shipment(NamedTuple):
-    key: str  # hash of the pickle: a worker that holds this key already has the tracer
-    path: str
-
-
-@contextmanager
-def _shipped(cs: CompiledScene, settings: IntegratorSettings) -> Iterator[_Shipment]:
-    """The scene pickled once to a temporary file for the workers, removed after the render."""
-    # Fields a tracer does not read are normalised, so another seed, spp or time limit of
-    # the same scene does not make the workers rebuild their tracers.
-    tracer_settings = dataclasses.replace(settings, seed=0, spp=1, time_limit=0.0)
-    data = pickle.dumps((cs, tracer_settings), protocol=pickle.HIGHEST_PROTOCOL)
-    key = hashlib.blake2b(data, digest_size=16).hexdigest()
-    fd, path = tempfile.mkstemp(prefix=f"haze-scene-{key[:8]}-", suffix=".pkl")
-    try:
-        with os.fdopen(fd, "wb") as f:
-            f.write(data)
-        yield _Shipment(key, path)
-    finally:
-        Path(path).unlink(missing_ok=True)
-
-
-# --- worker processes -------------------------------------------------------------------
-
-
 def announce_compile(names: list[str]) -> None:
     """What a process says before it compiles kernels (once per machine and Haze build)."""
     print(f"haze: compiling kernels (first run only): {', '.join(names)}", file=sys.stderr, flush=True)
-
-
-def _worker_main(conn: Connection) -> None:
-    """A worker: trace the units it is sent, keeping the tracer of the last scene."""
-    # Ctrl-C reaches the whole process group; the parent decides what stops, and a worker
-    # interrupted mid-unit would only print a traceback.
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    key, tracer = None, None
-    while True:
-        try:
-            task = conn.recv()
-        except (EOFError, OSError):
-            return  # the parent is gone
-        if task is None:
-            return
-        shipment, unit, seed = task
-        try:
-            if shipment.key != key:
-                tracer = None  # free the old scene before loading the new one
-                tracer = _load_tracer(shipment, conn)
-                key = shipment.key
-            conn.send(("done", unit.index, _trace_unit(tracer, unit, seed)))
-        except Exception as error:  # reported to the parent, which raises it there
-            conn.send(("error", unit.index, _picklable(error), traceback.format_exc()))
-
-
-def _load_tracer(shipment: _Shipment, conn: Connection) -> Tracer:
-    with open(shipment.path, "rb") as f:
-        cs, settings = pickle.load(f)
-    tracer = Tracer(cs, settings, lambda names: conn.send(("compile", names)))
-    conn.send(("ready",))
-    return tracer
-
-
-def _picklable(error: Exception) -> Exception:
-    try:
-        pickle.loads(pickle.dumps(error))
-        return error
-    except Exception:
-        return RuntimeError(f"{type(error).__name__}: {error}")
-
-
-class _Worker:
-    def __init__(self) -> None:
-        ctx = multiprocessing.get_context("spawn")  # Blender cannot fork; spawn everywhere alike
-        self.conn, child = ctx.Pipe()
-        self.process = ctx.Process(target=_worker_main, args=(child,), daemon=True, name="haze-worker")
-        self.process.start()
-        child.close()
-        self.unit: Unit | None = None  # the unit in flight
-        self.compiling = False
-
-    def send(self, shipment: _Shipment, unit: Unit, seed: int) -> None:
-        self.unit = unit
-        try:
-            self.conn.send((shipment, unit, seed))
-        except OSError:
-            pass  # it died: its sentinel says so at the next wait, and the unit is retried
-
-    def alive(self) -> bool:
-        return self.process.is_alive()
-
-    def stop(self, terminate: bool) -> None:
-        """End the process: politely when idle, at once when it may be inside a kernel."""
-        if not terminate and self.alive():
-            try:
-                self.conn.send(None)
-            except OSError:
-                terminate = True
-        if terminate and self.alive():
-            self.process.terminate()
-        self.process.join(timeout=5)
-        if self.process.is_alive():
-            self.process.kill()
-            self.process.join(timeout=5)
-        self.conn.close()
-
-
-class _Pool:
-    """The persistent workers of this process."""
-
-    def __init__(self) -> None:
-        self.workers: list[_Worker] = []
-
-    def resize(self, n: int) -> None:
-        for dead in [w for w in self.workers if not w.alive()]:
-            dead.stop(terminate=True)  # reaps it and closes its pipe
-            self.workers.remove(dead)
-        while len(self.workers) > n:
-            self.workers.pop().stop(terminate=False)
-        while len(self.workers) < n:
-            self.workers.append(_Worker())
-
-    def idle(self) -> list[_Worker]:
-        return [w for w in self.workers if w.unit is None]
-
-    def busy(self) -> list[_Worker]:
-        return [w for w in self.workers if w.unit is not None]
-
-    def replace(self, worker: _Worker) -> None:
-        """A new process in place of `worker`, which is terminated if still running."""
-        worker.stop(terminate=True)
-        self.workers[self.workers.index(worker)] = _Worker()
-
-    def terminate_busy(self) -> None:
-        """Stop units in flight (their results would reach the next render otherwise)."""
-        for worker in self.busy():
-            worker.stop(terminate=True)
-        self.workers = [w for w in self.workers if w.unit is None]
-
-    def events(self, timeout: float) -> list[tuple[_Worker, tuple | None]]:
-        """Messages from busy workers, (worker, None) for one that died; [] on timeout."""
-        busy = self.busy()
-        handles = {}
-        for w in busy:
-            handles[w.conn] = w
-            handles[w.process.sentinel] = w
-        ready = wait_for(list(handles), timeout=max(0.0, timeout))
-        out: list[tuple[_Worker, tuple | None]] = []
-        for w in dict.fromkeys(handles[h] for h in ready):  # each worker once, in order
-            try:
-                # A worker that sent its result and then died still delivers the result.
-                while w.conn.poll():
-                    out.append((w, w.conn.recv()))
-            except (EOFError, OSError):
-                pass
-            if not w.alive():
-                out.append((w, None))  # after its messages: a unit it finished is not lost
-        return out
-
-    def pids(self) -> list[int]:
-        return [w.process.pid for w in self.workers if w.alive() and w.process.pid is not None]
-
-    def shutdown(self) -> None:
-        for worker in self.workers:
-            worker.stop(terminate=worker.unit is not None)
-        self.workers = []
-
-
-_pool = _Pool()
-
-
-def shutdown_workers() -> None:
-    """Stop the worker processes (the add-on calls this when it is disabled; also at exit)."""
-    _pool.shutdown()
-
-
-def worker_pids() -> list[int]:
-    """Process ids of the live workers (a later render reuses them)."""
-    return _pool.pids()
-
-
-atexit.register(shutdown_workers)
 
 
 class _Clock:
@@ -407,31 +215,31 @@ class _PoolRender:
         self.yielded = False  # whether the caller has an image yet
 
     def frames(self) -> Iterator[Progress]:
-        with _shipped(self.cs, self.settings) as shipment:
+        with shipped(self.cs, self.settings) as shipment:
             try:
                 yield from self._run(shipment)
             except KeyboardInterrupt:
                 # Show the finished units before the interrupt goes on to the caller.
-                _pool.terminate_busy()
+                pool.terminate_busy()
                 if self.merger.merge_the_rest():
                     yield self._progress()
                 raise
             finally:
-                _pool.terminate_busy()  # a cancelled render leaves no unit in flight
+                pool.terminate_busy()  # a cancelled render leaves no unit in flight
 
-    def _run(self, shipment: _Shipment) -> Iterator[Progress]:
-        _pool.resize(self.workers)
+    def _run(self, shipment: Shipment) -> Iterator[Progress]:
+        pool.resize(self.workers)
         while True:
             if self._stopping():
                 self.stop_at = min(self.stop_at, time.perf_counter() + STOP_GRACE)
             else:
                 self._hand_out(shipment)
-            if not _pool.busy():
+            if not pool.busy():
                 break
             if time.perf_counter() >= self.stop_at:
                 self._give_up_units_in_flight()
                 break
-            if self._handle(_pool.events(self._wait_time())):
+            if self._handle(pool.events(self._wait_time())):
                 self.yielded = True
                 yield self._progress()
         # The pool is refilled by the next render (lazily: an exiting CLI must not wait for
@@ -442,14 +250,14 @@ class _PoolRender:
     def _give_up_units_in_flight(self) -> None:
         if self.film.spp == 0 and not self.merger.waiting:
             self.note = "the time limit passed before the first samples were done"
-        _pool.terminate_busy()
+        pool.terminate_busy()
 
     def _stopping(self) -> bool:
         return bool(self.note) or self.clock.left() <= 0 or _target_reached(self.film, self.target_error)
 
-    def _hand_out(self, shipment: _Shipment) -> None:
-        _pool.resize(self.workers)  # replaces idle workers that died since (killed, out of memory)
-        for worker in _pool.idle():
+    def _hand_out(self, shipment: Shipment) -> None:
+        pool.resize(self.workers)  # replaces idle workers that died since (killed, out of memory)
+        for worker in pool.idle():
             if not self.todo:
                 return
             worker.send(shipment, self.todo.pop(0), self.settings.seed)
@@ -457,7 +265,7 @@ class _PoolRender:
     def _wait_time(self) -> float:
         return min(self.clock.left(), self.stop_at - time.perf_counter(), 3600.0)
 
-    def _handle(self, events: list[tuple[_Worker, tuple | None]]) -> bool:
+    def _handle(self, events: list[tuple[Worker, tuple | None]]) -> bool:
         """Act on the workers' messages; True if the film changed."""
         merged = False
         for worker, message in events:
@@ -475,20 +283,20 @@ class _PoolRender:
                 raise message[2] from RuntimeError(f"in a worker process:\n{message[3]}")
         return merged
 
-    def _compiling(self, worker: _Worker, compiling: bool, names: list[str] | None = None) -> None:
+    def _compiling(self, worker: Worker, compiling: bool, names: list[str] | None = None) -> None:
         worker.compiling = compiling
         if names and not self.announced:
             self.announced = True
             self.on_compile(names)
-        self.clock.pause(any(w.compiling for w in _pool.workers))
+        self.clock.pause(any(w.compiling for w in pool.workers))
 
-    def _lost(self, worker: _Worker) -> None:
+    def _lost(self, worker: Worker) -> None:
         """A worker died: its unit goes back to the queue and a new process takes its place."""
         unit = worker.unit
         code = worker.process.exitcode
         worker.unit, worker.compiling = None, False
-        _pool.replace(worker)
-        self.clock.pause(any(w.compiling for w in _pool.workers))
+        pool.replace(worker)
+        self.clock.pause(any(w.compiling for w in pool.workers))
         if unit is None:
             return
         self.attempts[unit.index] = self.attempts.get(unit.index, 0) + 1
