@@ -213,6 +213,7 @@ class _PoolRender:
         self.stop_at = math.inf  # when units still in flight are given up
         self.note = ""
         self.yielded = False  # whether the caller has an image yet
+        self.target_met = False
 
     def frames(self) -> Iterator[Progress]:
         with shipped(self.cs, self.settings) as shipment:
@@ -240,6 +241,8 @@ class _PoolRender:
                 self._give_up_units_in_flight()
                 break
             if self._handle(pool.events(self._wait_time())):
+                # Checked once per merge: the estimate reads the whole image.
+                self.target_met = _target_reached(self.film, self.target_error)
                 self.yielded = True
                 yield self._progress()
         # The pool is refilled by the next render (lazily: an exiting CLI must not wait for
@@ -248,12 +251,12 @@ class _PoolRender:
             yield self._progress()
 
     def _give_up_units_in_flight(self) -> None:
-        if self.film.spp == 0 and not self.merger.waiting:
+        if self.film.spp == 0 and not self.merger.waiting and not self.note:
             self.note = "the time limit passed before the first samples were done"
         pool.terminate_busy()
 
     def _stopping(self) -> bool:
-        return bool(self.note) or self.clock.left() <= 0 or _target_reached(self.film, self.target_error)
+        return bool(self.note) or self.target_met or self.clock.left() <= 0
 
     def _hand_out(self, shipment: Shipment) -> None:
         pool.resize(self.workers)  # replaces idle workers that died since (killed, out of memory)

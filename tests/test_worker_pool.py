@@ -19,6 +19,7 @@ import pytest
 
 from examples.media_scenes import grid_medium, with_grid_medium
 from examples.scenes import cornell_box
+from renderer import render as render_module
 from renderer.compile import compile_scene
 from renderer.film import Film
 from renderer.integrator.wavefront import Tracer
@@ -75,6 +76,30 @@ def test_units_start_small_and_stay_near_unit_paths():
     assert [u.samples for u in units[:4]] == [1, 1, 2, 4]
     assert max(u.samples for u in units) == UNIT_PATHS // (128 * 128)
     assert {u.samples for u in plan_units(4096, 4096, 3)} == {1}  # one sample is the least
+
+
+class StubWorker:
+    """What _PoolRender reads of a worker: its unit and whether it compiles."""
+
+    def __init__(self) -> None:
+        self.unit, self.compiling = None, False
+
+
+def test_a_compile_in_workers_is_announced_once_in_the_parent_and_pauses_the_time_limit(monkeypatch):
+    workers = [StubWorker(), StubWorker()]
+    monkeypatch.setattr(render_module.pool, "workers", workers)
+    scene = cornell_box(size=4, spp=1)
+    scene.integrator.time_limit = 5.0
+    announced: list[list[str]] = []
+    run = render_module._PoolRender(None, scene.integrator, Film(4, 4), plan_units(4, 4, 1),
+                                    time.perf_counter(), 0.0, 2, announced.append)
+    run._handle([(workers[0], ("compile", ["shade_media"])), (workers[1], ("compile", ["shade_media"]))])
+    assert announced == [["shade_media"]]
+    assert run.clock.left() == float("inf")  # minutes of compiling do not count against 5 s
+    run._handle([(workers[0], ("ready",))])
+    assert run.clock.left() == float("inf")  # the other still compiles
+    run._handle([(workers[1], ("ready",))])
+    assert 0.0 < run.clock.left() <= 5.0
 
 
 # --- determinism and persistence --------------------------------------------------------
