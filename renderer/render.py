@@ -43,7 +43,7 @@ __all__ = ["Progress", "Unit", "default_workers", "plan_units", "render", "rende
 # samples per pixel (a fraction of a second on the example scenes: the fog box traces
 # about 1-2 M paths/s per core). The first units are smaller (1, 1, 2, 4, ... spp up to that
 # size) so that the first image comes quickly and both of two workers start at once.
-UNIT_PATHS = 1 << 18
+UNIT_PATHS = 1 << 17
 # After a stop (time limit, target error), units in flight get this long to finish before
 # their workers are terminated: long enough for a normal unit, short enough for "about a second".
 STOP_GRACE = 0.5
