@@ -6,9 +6,10 @@ depend only on the image size and the sample count, never on timing, and the fil
 them in unit order, so the image is bit-identical whatever the number of workers and equal
 to the single-process render of the same seed. A unit that finishes before its
 predecessors waits in a small buffer; the caller sees the image after every merge and may
-stop at any time. A render that stops early (time limit, target error, Ctrl-C) first
-merges every finished unit, so no finished sample is lost, and the film counts exactly
-the samples it holds.
+stop at any time. A render that stops early (time limit, target error, or a
+KeyboardInterrupt while it waits) merges every finished unit before it returns, so no
+finished sample is lost (closing the generator keeps what was yielded), and the film
+counts exactly the samples it holds.
 
 Embree holds Python's lock while it traces, so the second core needs a second process.
 The worker processes (renderer.workers) persist across renders in this process and get
@@ -34,7 +35,16 @@ from .compile import CompiledScene, compile_scene
 from .film import Film
 from .integrator.wavefront import Tracer
 from .scene import IntegratorSettings, Scene
-from .workers import Shipment, Worker, pool, shipped, shutdown_workers, start_workers, worker_pids
+from .workers import (
+    Shipment,
+    Worker,
+    borrowed_pool,
+    pool,
+    shipped,
+    shutdown_workers,
+    start_workers,
+    worker_pids,
+)
 
 __all__ = ["Progress", "Unit", "default_workers", "plan_units", "render", "render_progressive",
            "shutdown_workers", "start_workers", "worker_pids"]
@@ -58,7 +68,7 @@ class Progress:
     elapsed: float  # seconds since the render started (scene compile included)
     error_estimate: float  # estimated relMSE of `image` (nan before 2 spp)
     film: Film
-    note: str = ""  # why the render stopped short of spp_target when that was not asked for
+    note: str = ""  # what went wrong, when the render stopped short for another reason than asked
 
 
 class Unit(NamedTuple):
@@ -214,33 +224,34 @@ class _PoolRender:
         self.note = ""
         self.yielded = False  # whether the caller has an image yet
         self.target_met = False
+        self.pool = pool  # the shared workers; frames() borrows them
 
     def frames(self) -> Iterator[Progress]:
-        with shipped(self.cs, self.settings) as shipment:
+        with borrowed_pool() as self.pool, shipped(self.cs, self.settings) as shipment:
             try:
                 yield from self._run(shipment)
             except KeyboardInterrupt:
                 # Show the finished units before the interrupt goes on to the caller.
-                pool.terminate_busy()
+                self.pool.terminate_busy()
                 if self.merger.merge_the_rest():
                     yield self._progress()
                 raise
             finally:
-                pool.terminate_busy()  # a cancelled render leaves no unit in flight
+                self.pool.terminate_busy()  # a cancelled render leaves no unit in flight
 
     def _run(self, shipment: Shipment) -> Iterator[Progress]:
-        pool.resize(self.workers)
+        self.pool.resize(self.workers)
         while True:
             if self._stopping():
                 self.stop_at = min(self.stop_at, time.perf_counter() + STOP_GRACE)
             else:
                 self._hand_out(shipment)
-            if not pool.busy():
+            if not self.pool.busy():
                 break
             if time.perf_counter() >= self.stop_at:
                 self._give_up_units_in_flight()
                 break
-            if self._handle(pool.events(self._wait_time())):
+            if self._handle(self.pool.events(self._wait_time())):
                 # Checked once per merge: the estimate reads the whole image.
                 self.target_met = _target_reached(self.film, self.target_error)
                 self.yielded = True
@@ -253,14 +264,14 @@ class _PoolRender:
     def _give_up_units_in_flight(self) -> None:
         if self.film.spp == 0 and not self.merger.waiting and not self.note:
             self.note = "the time limit passed before the first samples were done"
-        pool.terminate_busy()
+        self.pool.terminate_busy()
 
     def _stopping(self) -> bool:
         return bool(self.note) or self.target_met or self.clock.left() <= 0
 
     def _hand_out(self, shipment: Shipment) -> None:
-        pool.resize(self.workers)  # replaces idle workers that died since (killed, out of memory)
-        for worker in pool.idle():
+        self.pool.resize(self.workers)  # replaces idle workers that died since (killed, out of memory)
+        for worker in self.pool.idle():
             if not self.todo:
                 return
             worker.send(shipment, self.todo.pop(0), self.settings.seed)
@@ -291,15 +302,15 @@ class _PoolRender:
         if names and not self.announced:
             self.announced = True
             self.on_compile(names)
-        self.clock.pause(any(w.compiling for w in pool.workers))
+        self.clock.pause(any(w.compiling for w in self.pool.workers))
 
     def _lost(self, worker: Worker) -> None:
         """A worker died: its unit goes back to the queue and a new process takes its place."""
         unit = worker.unit
         code = worker.process.exitcode
         worker.unit, worker.compiling = None, False
-        pool.replace(worker)
-        self.clock.pause(any(w.compiling for w in pool.workers))
+        self.pool.replace(worker)
+        self.clock.pause(any(w.compiling for w in self.pool.workers))
         if unit is None:
             return
         self.attempts[unit.index] = self.attempts.get(unit.index, 0) + 1

@@ -37,6 +37,7 @@ if TYPE_CHECKING:
     from .render import Unit
     from .scene import IntegratorSettings
 
+
 class Shipment(NamedTuple):
     key: str  # hash of the pickle: a worker that holds this key already has the tracer
     path: str
@@ -147,6 +148,7 @@ class Pool:
 
     def __init__(self) -> None:
         self.workers: list[Worker] = []
+        self.in_use = False  # by a render (see borrowed_pool)
 
     def resize(self, n: int) -> None:
         """n workers: idle ones that died are replaced. A busy one that died stays until the
@@ -210,6 +212,25 @@ class Pool:
 
 
 pool = Pool()
+
+
+@contextmanager
+def borrowed_pool() -> Iterator[Pool]:
+    """The shared pool for one render; a private one, stopped afterwards, for a render that
+    starts while another still runs (two generators at once must not read each other's
+    messages)."""
+    if pool.in_use:
+        private = Pool()
+        try:
+            yield private
+        finally:
+            private.shutdown()
+        return
+    pool.in_use = True
+    try:
+        yield pool
+    finally:
+        pool.in_use = False
 
 
 def shutdown_workers() -> None:

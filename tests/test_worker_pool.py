@@ -132,6 +132,20 @@ def test_a_second_render_reuses_the_workers():
     assert worker_pids() == first
 
 
+@pytest.mark.slow
+def test_two_renders_at_once_do_not_mix(reference: Film):
+    """A second generator started while the first runs gets workers of its own."""
+    first = render_progressive(cornell_box(size=24, spp=64), workers=2)
+    second = render_progressive(cornell_box(size=24, spp=64), workers=1, in_process=False)
+    a = b = None
+    for a, b in zip(first, second):  # noqa: B007
+        pass
+    a = [a, *first][-1]
+    b = [b, *second][-1]
+    assert_same_bits(a.film, reference)
+    assert_same_bits(b.film, reference)
+
+
 # --- faults -----------------------------------------------------------------------------
 
 
