@@ -5,11 +5,11 @@ into units, each a range of sample indices for every pixel (`plan_units`). Their
 depend only on the image size and the sample count, never on timing, and the film adds
 them in unit order, so the image is bit-identical whatever the number of workers and equal
 to the single-process render of the same seed. A unit that finishes before its
-predecessors waits in a small buffer; the caller sees the image after every merge and may
-stop at any time. A render that stops early (time limit, target error, or a
-KeyboardInterrupt while it waits) merges every finished unit before it returns, so no
-finished sample is lost (closing the generator keeps what was yielded), and the film
-counts exactly the samples it holds.
+predecessors waits in a small buffer. The caller sees the image after merges (the first at
+once, then at most every YIELD_INTERVAL) and may stop at any time. A render that stops
+early (time limit, target error, or a KeyboardInterrupt while it waits) merges every
+finished unit before it returns, so no finished sample is lost (closing the generator
+keeps what was yielded), and the film counts exactly the samples it holds.
 
 Embree holds Python's lock while it traces, so the second core needs a second process.
 The worker processes (renderer.workers) persist across renders in this process and get
@@ -50,10 +50,17 @@ __all__ = ["Progress", "Unit", "default_workers", "plan_units", "render", "rende
            "shutdown_workers", "start_workers", "worker_pids"]
 
 # Unit size rule: about UNIT_PATHS path samples per unit, i.e. max(1, UNIT_PATHS // pixels)
-# samples per pixel (a fraction of a second on the example scenes: the fog box traces
-# about 1-2 M paths/s per core). The first units are smaller (1, 1, 2, 4, ... spp up to that
-# size) so that the first image comes quickly and both of two workers start at once.
+# samples per pixel: 0.1-0.2 s on one core for the Cornell box with or without fog (0.9-1.2
+# M samples/s per core, README), up to about 1 s for dense grids (3.6-8.7 us per sample).
+# Small enough that a time limit wastes little and a killed worker loses little; large
+# enough that shipping a unit's film back (24 bytes per pixel and channel) stays small.
+# The first units are smaller (1, 1, 2, 4, ... spp up to that size), so that the first
+# image comes quickly and both of two workers start at once. One sample per pixel is the
+# least: a unit spans the whole image (tiles would need the tracer to take a pixel range).
 UNIT_PATHS = 1 << 17
+# Progress is yielded at most this often (and always for the first and the last merge):
+# the image and its error estimate cost about a tenth of a unit's tracing at 256x256.
+YIELD_INTERVAL = 0.5
 # After a stop (time limit, target error), units in flight get this long to finish before
 # their workers are terminated: long enough for a normal unit, short enough for "about a second".
 STOP_GRACE = 0.5
@@ -100,10 +107,10 @@ def _validate(scene: Scene) -> None:
 def render_progressive(scene: Scene, workers: int = 1, target_error: float = 0.0,
                        validate: bool = True, on_compile: Callable[[list[str]], None] | None = None,
                        in_process: bool | None = None) -> Iterator[Progress]:
-    """Render `scene`, yielding after every merge of units. Stops at scene.integrator.spp
-    samples, at scene.integrator.time_limit seconds (if > 0) or once the estimated relMSE
-    falls below target_error (if > 0). on_compile(kernel names) is called (in this process,
-    while the generator runs) when kernels must be compiled first.
+    """Render `scene`, yielding the image as units are merged (see YIELD_INTERVAL). Stops
+    at scene.integrator.spp samples, at scene.integrator.time_limit seconds (if > 0) or
+    once the estimated relMSE falls below target_error (if > 0). on_compile(kernel names)
+    is called (in this process, while the generator runs) when kernels must be compiled.
 
     in_process: trace in this process (True) or in the worker pool (False). By default
     (None) one worker without a time limit runs in this process, which starts fastest and
@@ -144,15 +151,39 @@ def trace_unit(tracer: Tracer, unit: Unit, seed: int) -> Film:
     return part
 
 
+class _Pacer:
+    """When to show progress: at the first merge, then at most every YIELD_INTERVAL."""
+
+    def __init__(self) -> None:
+        self.last = -math.inf
+        self.pending = False  # merged since the last progress shown
+        self.shown = False  # whether the caller has had an image
+
+    def merged(self) -> bool:
+        """Record a merge; True if progress is due now."""
+        self.pending = True
+        if time.perf_counter() - self.last < YIELD_INTERVAL:
+            return False
+        self.last = time.perf_counter()
+        self.pending = False
+        self.shown = True
+        return True
+
+
 def _render_here(cs: CompiledScene, settings: IntegratorSettings, film: Film, units: list[Unit], t0: float,
                  target_error: float, on_compile) -> Iterator[Progress]:
     tracer = Tracer(cs, settings, on_compile)
+    pacer = _Pacer()
     for unit in units:
         film.add(trace_unit(tracer, unit, settings.seed))
+        if pacer.merged():
+            yield _progress(film, settings, t0)
+            if _target_reached(film, target_error):  # checked when shown: it reads the whole image
+                return
+        if settings.time_limit > 0 and time.perf_counter() - t0 >= settings.time_limit:
+            break
+    if pacer.pending:
         yield _progress(film, settings, t0)
-        out_of_time = settings.time_limit > 0 and time.perf_counter() - t0 >= settings.time_limit
-        if out_of_time or _target_reached(film, target_error):
-            return
 
 
 class _UnitMerger:
@@ -222,7 +253,7 @@ class _PoolRender:
         self.attempts: dict[int, int] = {}
         self.stop_at = math.inf  # when units still in flight are given up
         self.note = ""
-        self.yielded = False  # whether the caller has an image yet
+        self.pacer = _Pacer()
         self.target_met = False
         self.pool = pool  # the shared workers; frames() borrows them
 
@@ -233,7 +264,7 @@ class _PoolRender:
             except KeyboardInterrupt:
                 # Show the finished units before the interrupt goes on to the caller.
                 self.pool.terminate_busy()
-                if self.merger.merge_the_rest():
+                if self.merger.merge_the_rest() or self.pacer.pending:
                     yield self._progress()
                 raise
             finally:
@@ -251,14 +282,13 @@ class _PoolRender:
             if time.perf_counter() >= self.stop_at:
                 self._give_up_units_in_flight()
                 break
-            if self._handle(self.pool.events(self._wait_time())):
-                # Checked once per merge: the estimate reads the whole image.
+            if self._handle(self.pool.events(self._wait_time())) and self.pacer.merged():
+                # Checked when shown: the estimate reads the whole image.
                 self.target_met = _target_reached(self.film, self.target_error)
-                self.yielded = True
                 yield self._progress()
         # The pool is refilled by the next render (lazily: an exiting CLI must not wait for
         # new processes to start).
-        if self.merger.merge_the_rest() or self.note or not self.yielded:
+        if self.merger.merge_the_rest() or self.pacer.pending or self.note or not self.pacer.shown:
             yield self._progress()
 
     def _give_up_units_in_flight(self) -> None:
