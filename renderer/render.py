@@ -21,6 +21,7 @@ render starts a new one. A worker that dies costs only its unit, which another t
 
 from __future__ import annotations
 
+import heapq
 import math
 import os
 import sys
@@ -46,7 +47,7 @@ from .workers import (
     worker_pids,
 )
 
-__all__ = ["Progress", "Unit", "default_workers", "plan_units", "render", "render_progressive",
+__all__ = ["Progress", "Unit", "default_workers", "iter_units", "plan_units", "render", "render_progressive",
            "shutdown_workers", "start_workers", "worker_pids"]
 
 # Unit size rule: about UNIT_PATHS path samples per unit, i.e. max(1, UNIT_PATHS // pixels)
@@ -84,18 +85,22 @@ class Unit(NamedTuple):
     samples: int  # samples per pixel in this unit
 
 
-def plan_units(width: int, height: int, spp: int) -> list[Unit]:
-    """The render's units (see UNIT_PATHS): a function of the image size and spp only."""
+def iter_units(width: int, height: int, spp: int) -> Iterator[Unit]:
+    """The render's units in order (see UNIT_PATHS): a function of the image size and spp
+    only. A generator, since a benchmark's "render until stopped" asks for 2^20 spp."""
     full = max(1, UNIT_PATHS // max(1, width * height))
-    units: list[Unit] = []
-    start, size = 0, 1
+    index, start, size = 0, 0, 1
     while start < spp:
         count = min(size, full, spp - start)
-        units.append(Unit(len(units), start, count))
+        yield Unit(index, start, count)
+        index += 1
         start += count
-        if len(units) >= 2:  # 1, 1, 2, 4, ...: two small units first, one per worker of two
+        if index >= 2:  # 1, 1, 2, 4, ...: two small units first, one per worker of two
             size *= 2
-    return units
+
+
+def plan_units(width: int, height: int, spp: int) -> list[Unit]:
+    return list(iter_units(width, height, spp))
 
 
 def _validate(scene: Scene) -> None:
@@ -122,7 +127,7 @@ def render_progressive(scene: Scene, workers: int = 1, target_error: float = 0.0
     cs = compile_scene(scene)
     settings = scene.integrator
     film = Film(cs.width, cs.height)
-    units = plan_units(cs.width, cs.height, settings.spp)
+    units = iter_units(cs.width, cs.height, settings.spp)
     if in_process is None:
         in_process = workers <= 1 and settings.time_limit <= 0
     if in_process:
@@ -170,8 +175,8 @@ class _Pacer:
         return True
 
 
-def _render_here(cs: CompiledScene, settings: IntegratorSettings, film: Film, units: list[Unit], t0: float,
-                 target_error: float, on_compile) -> Iterator[Progress]:
+def _render_here(cs: CompiledScene, settings: IntegratorSettings, film: Film, units: Iterator[Unit],
+                 t0: float, target_error: float, on_compile) -> Iterator[Progress]:
     tracer = Tracer(cs, settings, on_compile)
     pacer = _Pacer()
     for unit in units:
@@ -240,10 +245,11 @@ class _Clock:
 class _PoolRender:
     """One render on the persistent pool: hand out units, merge results, enforce the stops."""
 
-    def __init__(self, cs: CompiledScene, settings: IntegratorSettings, film: Film, units: list[Unit],
+    def __init__(self, cs: CompiledScene, settings: IntegratorSettings, film: Film, units: Iterator[Unit],
                  t0: float, target_error: float, workers: int, on_compile):
         self.cs, self.settings, self.film, self.t0 = cs, settings, film, t0
-        self.todo = list(units)  # kept in unit order: a retried unit goes back to its place
+        self.fresh = units
+        self.retry: list[Unit] = []  # a heap: units whose worker died, before any fresh one
         self.target_error = target_error
         self.workers = workers
         self.on_compile = on_compile or announce_compile
@@ -302,9 +308,10 @@ class _PoolRender:
     def _hand_out(self, shipment: Shipment) -> None:
         self.pool.resize(self.workers)  # replaces idle workers that died since (killed, out of memory)
         for worker in self.pool.idle():
-            if not self.todo:
+            unit = heapq.heappop(self.retry) if self.retry else next(self.fresh, None)
+            if unit is None:
                 return
-            worker.send(shipment, self.todo.pop(0), self.settings.seed)
+            worker.send(shipment, unit, self.settings.seed)
 
     def _wait_time(self) -> float:
         return min(self.clock.left(), self.stop_at - time.perf_counter(), 3600.0)
@@ -349,8 +356,7 @@ class _PoolRender:
                          f"{unit.first_sample + unit.samples - 1} (last exit code {code}); stopped with the"
                          " samples done")
             return
-        self.todo.append(unit)
-        self.todo.sort()
+        heapq.heappush(self.retry, unit)
 
     def _progress(self) -> Progress:
         return _progress(self.film, self.settings, self.t0, self.note)

@@ -91,7 +91,7 @@ def test_a_compile_in_workers_is_announced_once_in_the_parent_and_pauses_the_tim
     scene = cornell_box(size=4, spp=1)
     scene.integrator.time_limit = 5.0
     announced: list[list[str]] = []
-    run = render_module._PoolRender(None, scene.integrator, Film(4, 4), plan_units(4, 4, 1),
+    run = render_module._PoolRender(None, scene.integrator, Film(4, 4), iter(plan_units(4, 4, 1)),
                                     time.perf_counter(), 0.0, 2, announced.append)
     run._handle([(workers[0], ("compile", ["shade_media"])), (workers[1], ("compile", ["shade_media"]))])
     assert announced == [["shade_media"]]
