@@ -78,6 +78,65 @@ def test_units_start_small_and_stay_near_unit_paths():
     assert {u.samples for u in plan_units(4096, 4096, 3)} == {1}  # one sample is the least
 
 
+def test_units_are_merged_in_order_and_the_rest_on_a_stop():
+    merged = Film(2, 1)
+    merger = render_module._UnitMerger(merged)
+    part = [Film(2, 1) for _ in range(4)]
+    for i, p in enumerate(part):
+        p.sum[:] = 10.0 ** i
+        p.n[:] = i + 1  # unit i holds i + 1 samples per pixel
+    assert not merger.add(1, part[1])  # waits for unit 0
+    assert merger.add(0, part[0]) and merged.spp == 1 + 2
+    assert not merger.add(3, part[3])  # unit 2 is not done
+    assert merger.merge_the_rest() and merged.spp == 1 + 2 + 4
+    assert merged.sum[0, 0] == 1.0 + 10.0 + 1000.0
+
+
+def test_a_worker_builds_its_tracer_once_per_scene(tmp_path):
+    """The worker loop, run here: two units of one scene, then one of another, then stop."""
+    from multiprocessing import Pipe
+
+    from renderer import workers
+
+    parent, child = Pipe()
+    scenes = [cornell_box(size=8, spp=2), cornell_box(size=8, spp=2)]
+    scenes[1].materials[0].lobes[0].color = (0.5, 0.5, 0.5)  # another scene: another key
+    with workers.shipped(compile_scene(scenes[0]), scenes[0].integrator) as first, \
+            workers.shipped(compile_scene(scenes[1]), scenes[1].integrator) as second:
+        assert first.key != second.key
+        units = plan_units(8, 8, 2)
+        for shipment, unit in [(first, units[0]), (first, units[1]), (second, units[0])]:
+            parent.send((shipment, unit, 0))
+        parent.send(None)
+        saved = signal.getsignal(signal.SIGINT)
+        try:
+            workers._worker_main(child)
+        finally:
+            signal.signal(signal.SIGINT, saved)
+    replies = []
+    while parent.poll():
+        replies.append(parent.recv())
+    assert [r[0] for r in replies] == ["ready", "done", "done", "ready", "done"]
+    assert all((r[2].n == 1).all() for r in replies if r[0] == "done")
+
+
+def test_a_failing_worker_reports_the_error_and_goes_on():
+    from multiprocessing import Pipe
+
+    from renderer import workers
+
+    parent, child = Pipe()
+    parent.send((workers.Shipment("no-such-scene", "/nonexistent/haze-scene.pkl"), plan_units(8, 8, 1)[0], 0))
+    parent.send(None)
+    saved = signal.getsignal(signal.SIGINT)
+    try:
+        workers._worker_main(child)
+    finally:
+        signal.signal(signal.SIGINT, saved)
+    kind, index, error, text = parent.recv()
+    assert (kind, index) == ("error", 0) and isinstance(error, FileNotFoundError) and "Traceback" in text
+
+
 class StubWorker:
     """What _PoolRender reads of a worker: its unit and whether it compiles."""
 
