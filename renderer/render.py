@@ -15,8 +15,8 @@ Embree holds Python's lock while it traces, so the second core needs a second pr
 The worker processes (renderer.workers) persist across renders in this process and get
 each scene once. The parent watches the clock: a worker still inside a unit when the time
 limit passes (one numba kernel call cannot be interrupted, and a pathological scene may
-stay in one for hours), or when the render is cancelled, is terminated, and the next
-render starts a new one. A worker that dies costs only its unit, which another traces again.
+stay in one for hours), or half a second after the render is cancelled, is terminated,
+and the next render starts a new one. A worker that dies costs only its unit, which another traces again.
 """
 
 from __future__ import annotations
@@ -272,6 +272,9 @@ class _PoolRender:
                 self.pool.terminate_busy()
                 if self.merger.merge_the_rest() or self.pacer.pending:
                     yield self._progress()
+                raise
+            except GeneratorExit:  # closed by the caller (Esc in Blender): no more images
+                self.pool.drain(STOP_GRACE)
                 raise
             finally:
                 self.pool.terminate_busy()  # a cancelled render leaves no unit in flight

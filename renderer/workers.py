@@ -23,6 +23,7 @@ import os
 import pickle
 import signal
 import tempfile
+import time
 import traceback
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -181,6 +182,15 @@ class Pool:
         for worker in self.busy():
             worker.stop(terminate=True)
         self.workers = [w for w in self.workers if w.unit is None]
+
+    def drain(self, timeout: float) -> None:
+        """Let units in flight finish for up to `timeout` seconds, discarding their results,
+        so that a cancelled render does not cost the next one its workers' start."""
+        deadline = time.monotonic() + timeout
+        while self.busy() and deadline > time.monotonic():
+            for worker, message in self.events(deadline - time.monotonic()):
+                if message is None or message[0] in ("done", "error"):
+                    worker.unit = None
 
     def events(self, timeout: float) -> list[tuple[Worker, tuple | None]]:
         """Messages from busy workers, (worker, None) for one that died; [] on timeout."""
