@@ -11,8 +11,8 @@ import sys
 from . import bootstrap
 
 if "bpy" in sys.modules:  # loaded into Blender (not merely imported by a unit test)
-    # Before anything can import numba: its cache must go to a user folder, not the add-on's.
-    bootstrap.configure_numba_cache(__package__ or __name__)
+    # Before anything can import numba: the command line's cache folder, not the add-on's.
+    bootstrap.configure_numba_cache()
 bootstrap.make_renderer_importable(__file__)
 
 # Used when enabled as a legacy add-on from a clone; extensions read blender_manifest.toml.
@@ -25,7 +25,7 @@ bl_info = {
     "description": "Volumetric path tracer (numpy, numba, Embree)",
 }
 
-MODULE_NAMES = ("properties", "engine", "ui", "operators", "operators_volume")
+MODULE_NAMES = ("properties", "preferences", "engine", "ui", "operators", "operators_volume")
 
 
 def _modules():
@@ -37,8 +37,23 @@ def _modules():
 def register() -> None:
     for module in _modules():
         module.register()
+    # Compile the kernels while the user sets up the scene, not after pressing F12.
+    from .preferences import start_background_compile
+
+    start_background_compile()
 
 
 def unregister() -> None:
+    from . import background
+
+    background.stop()
+    stop_render_workers()
     for module in reversed(_modules()):
         module.unregister()
+
+
+def stop_render_workers() -> None:
+    """Persistent render workers must not outlive the add-on (only if the renderer is loaded)."""
+    render = sys.modules.get("renderer.render")
+    if render is not None and hasattr(render, "shutdown_workers"):
+        render.shutdown_workers()

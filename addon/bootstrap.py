@@ -2,9 +2,11 @@
 
 Two things must happen first, at add-on import time:
 
-* NUMBA_CACHE_DIR points to a per-user cache folder. Numba otherwise writes compiled
-  kernels next to the renderer's sources, i.e. into the installed extension, which may be
-  read-only and is wiped on every update.
+* The kernel cache is the command line's (HAZE_CACHE_DIR, else NUMBA_CACHE_DIR, else
+  ~/.cache/haze): one compile per machine and user, whether the kernels are first needed by
+  `python -m renderer`, F12 in an installed extension or the add-on enabled from a clone.
+  Numba would otherwise write compiled functions next to their sources, i.e. into the
+  installed extension, which may be read-only and is wiped on every update.
 * The `renderer` package must be importable. An installed extension ships it as a bundled
   wheel (Blender puts the wheel's folder on sys.path); a development checkout enabled from a
   clone has it next to this add-on folder, so the repository root is added to sys.path.
@@ -21,45 +23,47 @@ import sys
 from pathlib import Path
 
 NUMBA_CACHE_ENV = "NUMBA_CACHE_DIR"
+HAZE_CACHE_ENV = "HAZE_CACHE_DIR"
 
 
-def extension_cache_dir(package: str) -> Path | None:
-    """The extension's user folder for numba's cache, or None outside Blender's extension system."""
-    if not package.startswith("bl_ext."):
-        return None  # enabled as a legacy add-on or imported directly: no extension user folder
-    try:
-        import bpy
+def haze_cache_root() -> Path:
+    """The folder the command line caches kernels under: renderer.kernels.cache.cache_root's rule.
 
-        return Path(bpy.utils.extension_path_user(package, path="numba_cache", create=True))
-    except (ImportError, AttributeError, ValueError, OSError):
-        return None
-
-
-def fallback_cache_dir() -> Path:
-    """A per-user cache folder when Blender does not provide one (XDG / LOCALAPPDATA / ~/.cache)."""
-    base = os.environ.get("XDG_CACHE_HOME") or os.environ.get("LOCALAPPDATA")
-    root = Path(base) if base else Path.home() / ".cache"
-    return root / "haze" / "numba"
-
-
-def configure_numba_cache(package: str) -> Path:
-    """Point numba's on-disk cache at a user folder, unless the user chose one already.
-
-    Returns the folder in use. If numba was imported before us (by another add-on), its
-    configuration is re-read so the setting still applies to our kernels.
+    Repeated here because that module imports numba, which registration must not do
+    (tests/test_addon_bootstrap.py checks that both give the same folder).
     """
-    chosen = os.environ.get(NUMBA_CACHE_ENV)
-    if chosen:
-        return Path(chosen)  # the user's own choice wins
-    folder = extension_cache_dir(package) or fallback_cache_dir()
-    folder.mkdir(parents=True, exist_ok=True)
-    os.environ[NUMBA_CACHE_ENV] = str(folder)
+    for name in (HAZE_CACHE_ENV, NUMBA_CACHE_ENV):
+        chosen = os.environ.get(name)
+        if chosen:
+            return Path(chosen)
+    if sys.platform == "win32":
+        base = os.environ.get("LOCALAPPDATA") or str(Path.home() / "AppData" / "Local")
+        return Path(base) / "haze"
+    if sys.platform == "darwin":
+        return Path.home() / "Library" / "Caches" / "haze"
+    return Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "haze"
+
+
+def configure_numba_cache() -> Path:
+    """Share the command line's kernel cache, unless the user chose a cache folder.
+
+    The renderer's kernels go to `<root>/kernels-<build key>` whatever NUMBA_CACHE_DIR says
+    (renderer.kernels.cache); numba's other cached functions (the add-on's flipcopy) go to
+    NUMBA_CACHE_DIR, so it is pointed at the same root: otherwise numba would write them
+    into the installed extension's folder. Returns the root. If numba was imported before
+    us (by another add-on), its configuration is re-read so the setting still applies.
+    """
+    root = haze_cache_root()
+    if os.environ.get(NUMBA_CACHE_ENV):
+        return root  # the user's own choice wins (the root follows it unless HAZE_CACHE_DIR is set)
+    root.mkdir(parents=True, exist_ok=True)
+    os.environ[NUMBA_CACHE_ENV] = str(root)
     if "numba" in sys.modules:
         try:
             sys.modules["numba"].core.config.reload_config()
         except AttributeError:
             pass  # an unexpected numba layout: the cache then stays where numba put it
-    return folder
+    return root
 
 
 def repository_root(addon_file: str) -> Path | None:

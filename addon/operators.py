@@ -13,28 +13,13 @@ from bpy_extras.io_utils import ExportHelper
 from .export.messages import ExportError
 from .export.validate import export_validated
 
-SCENE_FILE = "scene.json"
-
-
-def target_problem(folder: Path) -> str | None:
-    """Why exporting into `folder` could destroy the user's files, or None if it is safe.
-
-    Only a new folder, an empty one, or a previous Haze export (it has scene.json) is used;
-    anything else belongs to the user and is left alone.
-    """
-    if folder.exists() and not folder.is_dir():
-        return f"'{folder}' is a file, not a folder"
-    if folder.is_dir() and any(folder.iterdir()) and not (folder / SCENE_FILE).is_file():
-        return f"'{folder}' already holds other files; choose a new or empty folder"
-    return None
-
 
 def export_to_folder(context, folder: Path) -> list[str]:
-    """Export the evaluated scene into `folder`; returns the export warnings."""
-    exported = export_validated(context.evaluated_depsgraph_get(), render_depsgraph=False)
-    from renderer.scenefile import save_scene
+    """Export the evaluated scene into `folder` (see export/folder.py); returns the warnings."""
+    from .export.folder import write_export
 
-    save_scene(exported.scene, folder)
+    exported = export_validated(context.evaluated_depsgraph_get(), render_depsgraph=False)
+    write_export(exported.scene, folder)
     return exported.warnings
 
 
@@ -50,14 +35,16 @@ class HAZE_OT_export_scene(bpy.types.Operator, ExportHelper):
     filter_glob: StringProperty(default="", options={"HIDDEN"})
 
     def execute(self, context):
+        from .export.folder import ExportFolderError, target_problem
+
         folder = Path(bpy.path.abspath(self.filepath)).resolve()
-        problem = target_problem(folder)
+        problem = target_problem(folder)  # checked before the (slow) export too
         if problem:
             self.report({"ERROR"}, f"Export Haze Scene: {problem}")
             return {"CANCELLED"}
         try:
             warnings = export_to_folder(context, folder)
-        except (ExportError, OSError) as error:
+        except (ExportError, ExportFolderError, OSError) as error:
             self.report({"ERROR"}, str(error))
             return {"CANCELLED"}
         except Exception as error:  # a bug of ours must not look like a Blender crash

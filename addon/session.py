@@ -19,13 +19,31 @@ import traceback
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 
-from .display import ResultBuffer, write_result
+from .display import ResultBuffer, render_region, write_result
 from .export.messages import ExportError
 from .export.validate import export_validated
 
 PUSH_INTERVAL = 1.0  # seconds between image updates shown to the user
 MAX_DISPLAY_SHARE = 0.02  # pushes may take at most this share of the render time
 MAX_REPORTED_WARNINGS = 20  # more go to the console only, so the UI is not flooded
+COMPILING_TEXT = "Haze | Compiling kernels (first run only)…"
+
+_active_renders = 0  # RenderSessions running in this process (the cache must not be cleared then)
+
+
+def rendering() -> bool:
+    """True while a render of this process runs (Clear kernel cache refuses then)."""
+    return _active_renders > 0
+
+
+@contextmanager
+def counted_render():
+    global _active_renders
+    _active_renders += 1
+    try:
+        yield
+    finally:
+        _active_renders -= 1
 
 
 def format_duration(seconds: float) -> str:
@@ -105,12 +123,21 @@ class RenderSession:
         self.depsgraph = depsgraph
         self.settings = depsgraph.scene.haze
         self.width, self.height = int(engine.resolution_x), int(engine.resolution_y)
-        self.buffer = ResultBuffer(self.width, self.height)
+        render = getattr(depsgraph.scene, "render", None)
+        # Blender's result holds the Render Region only; the renderer renders just that window.
+        region = render_region(render, self.width, self.height)
+        self.window = region or (0, 0, self.width, self.height)
+        self.transparent = bool(getattr(render, "film_transparent", False))
+        self.buffer = ResultBuffer(self.window[2], self.window[3])
         self.latest = None  # last Progress received
         self.cancelled = False
 
     def run(self) -> None:
-        result = self.engine.begin_result(0, 0, self.width, self.height)
+        with counted_render():
+            self._run()
+
+    def _run(self) -> None:
+        result = self.engine.begin_result(0, 0, self.window[2], self.window[3])
         try:
             self._render(result)
         except KeyboardInterrupt:
@@ -127,7 +154,7 @@ class RenderSession:
         if result is None:
             return
         if self.latest is not None:
-            self.buffer.fill(self.latest.image)
+            self._fill()
         write_result(result, self.buffer)
         self.engine.end_result(result)
         if self.cancelled:
@@ -144,11 +171,17 @@ class RenderSession:
 
         self.engine.update_stats("", "Haze | Rendering")
         frames = render_progressive(exported.scene, workers=self._workers(),
-                                    target_error=float(self.settings.target_error), validate=False)
+                                    target_error=float(self.settings.target_error), validate=False,
+                                    on_compile=self._on_compile)
         try:
             self._consume(frames, result)
         finally:
             frames.close()  # stops the renderer's workers, also on cancel or error
+
+    def _on_compile(self, names: list[str]) -> None:
+        """The kernels are not in the cache: say why the first image takes minutes."""
+        self.engine.update_stats("", COMPILING_TEXT)
+        print(f"Haze: compiling kernels (first run only): {', '.join(names)}")
 
     def _workers(self) -> int:
         from .export.scene import worker_count
@@ -182,7 +215,13 @@ class RenderSession:
                 self.cancelled = True
                 return
 
+    def _fill(self) -> None:
+        # Alpha comes from the Progress's film (its alpha sums); without one, alpha stays 1.
+        film = getattr(self.latest, "film", None)
+        alpha = film.alpha_image() if self.transparent and film is not None else None
+        self.buffer.fill(self.latest.image, alpha)
+
     def _push(self, result) -> None:
-        self.buffer.fill(self.latest.image)
+        self._fill()
         write_result(result, self.buffer)
         self.engine.update_result(result)

@@ -6,7 +6,9 @@ voxel (i, j, k) centred at p0 + (i + 0.5) h with h = (p1 - p0) / n: that is Haze
 convention and, written as an OpenVDB index-to-object transform, Blender's and Cycles' too.
 
 The generators (the paper's Fig. 3 smoke ball and Fig. 6 gaussian smoke) live in
-renderer/media/generators.py, shared with examples/media_scenes.py; they are re-exported here.
+renderer/media/generators.py, shared with examples/media_scenes.py; they are re-exported here,
+imported when first called: importing renderer.media imports numba and defines kernels,
+which registering the add-on must not wait for.
 """
 
 from __future__ import annotations
@@ -19,7 +21,19 @@ from pathlib import Path
 
 import numpy as np
 
-from renderer.media.generators import gaussian_smoke_density, smoke_ball_density
+
+def smoke_ball_density(*args, **kwargs) -> np.ndarray:
+    """renderer.media.generators.smoke_ball_density (the paper's Fig. 3 smoke ball)."""
+    from renderer.media.generators import smoke_ball_density as generate
+
+    return generate(*args, **kwargs)
+
+
+def gaussian_smoke_density(*args, **kwargs) -> np.ndarray:
+    """renderer.media.generators.gaussian_smoke_density (the paper's Fig. 6 smoke)."""
+    from renderer.media.generators import gaussian_smoke_density as generate
+
+    return generate(*args, **kwargs)
 
 __all__ = ["GridFileError", "box_index_to_object", "check_grid", "gaussian_smoke_density", "import_openvdb",
            "read_npy", "read_pbrt", "smoke_ball_density", "write_pbrt", "write_vdb"]

@@ -89,7 +89,7 @@ def _surface_only_kernels():
     spec = importlib.util.spec_from_loader("renderer.integrator._surface_only", loader=None)
     module = importlib.util.module_from_spec(spec)
     module.__package__ = "renderer.integrator"
-    module.__dict__.update(_uncached=njit(**uncached), _uncached_inline=njit(**uncached, inline="always"))
+    module.__dict__.update(_uncached=njit(**uncached), _uncached_inline=njit(**uncached, forceinline=True))
     exec(compile(src, "<surface-only surface stage>", "exec"), module.__dict__)
     kernels = {name: getattr(stages, name) for name in stages.__all__}
     kernels["shade_surface"] = module.shade_surface

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import sys
 import threading
@@ -11,21 +12,61 @@ from pathlib import Path
 
 from .errors import SceneError
 
+# The exit status of a process ended by Ctrl-C (128 + SIGINT), as shells report it.
+EXIT_INTERRUPTED = 130
+OUTPUT_RULES = """\
+outputs: the EXR is written to a temporary file beside OUTPUT and renamed into place, so a
+symbolic link at OUTPUT is replaced, never written through. OUTPUT must not be a folder,
+lie under a file, or be one of the scene's input files (or a link to one); this is checked
+before rendering. The PNG preview (OUTPUT with .png) replaces an existing file only if Haze
+wrote it, unless --overwrite is given. Ctrl-C stops the render, writes the samples so far
+and exits with status 130.
+"""
+
 
 def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="python -m renderer", description="Haze volumetric path tracer")
     sub = p.add_subparsers(dest="command", required=True)
-    r = sub.add_parser("render", help="render a scene folder to an EXR (and a PNG preview)")
+    r = sub.add_parser(
+        "render",
+        help="render a scene folder to an EXR (and a PNG preview)",
+        epilog=OUTPUT_RULES,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
     r.add_argument("scene", type=Path, help="scene folder holding scene.json")
     r.add_argument("-o", "--output", type=Path, required=True, help="output .exr path")
     r.add_argument("--spp", type=int, help="samples per pixel (default: the scene's)")
-    r.add_argument("--time-limit", type=float, help="stop after this many seconds")
+    r.add_argument("--time-limit", type=_finite_float, help="stop after this many seconds")
     r.add_argument("--seed", type=int, help="random seed (default: the scene's)")
     r.add_argument("--max-bounces", type=int, help="Cycles' max_bounces: 0 = direct light only")
-    r.add_argument("--target-error", type=float, default=0.0, help="stop once estimated relMSE <= this")
+    r.add_argument(
+        "--target-error", type=_nonnegative_float, default=0.0,
+        help="stop once estimated relMSE <= this (0 = off)",
+    )
     r.add_argument("--workers", type=int, default=os.cpu_count() or 1, help="processes (default: all cores)")
     r.add_argument("--no-png", action="store_true", help="do not write the PNG preview")
+    r.add_argument(
+        "--overwrite", action="store_true", help="let the PNG preview replace a file Haze did not write"
+    )
     return p
+
+
+def _finite_float(text: str) -> float:
+    """A finite number: argparse refuses nan and inf with the option's name."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"must be a finite number, got {text!r}")
+    return value
+
+
+def _nonnegative_float(text: str) -> float:
+    value = _finite_float(text)
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"must be 0 (off) or more, got {text!r}")
+    return value
 
 
 def _bar(done: int, total: int, elapsed: float, err: float) -> str:
@@ -49,7 +90,62 @@ def _check(args) -> str | None:
         return "--workers must be at least 1"
     if args.output.suffix.lower() != ".exr":
         return f"output {args.output}: must end in .exr"
+    return _output_place_problem(args.output)
+
+
+def _output_place_problem(output: Path) -> str | None:
+    """Why `output` cannot be written where it is (checked before rendering), or None."""
+    if output.is_dir():
+        return f"output {output}: is a folder"
+    ancestor = output.parent
+    while not ancestor.exists() and not ancestor.is_symlink() and ancestor != ancestor.parent:
+        ancestor = ancestor.parent  # missing folders are created when the image is written
+    if not ancestor.is_dir():
+        return f"output {output}: {ancestor} is not a folder"
+    if not os.access(ancestor, os.W_OK | os.X_OK):
+        return f"output {output}: folder {ancestor} is not writable"
     return None
+
+
+def _output_conflict(output: Path, inputs: list[Path], what: str) -> str | None:
+    """Why writing `output` would destroy one of the scene's `inputs`, or None."""
+    target = output.resolve()
+    for file in inputs:
+        same = target == file.resolve() or (output.exists() and _same_file(output, file))
+        if same:
+            return f"{what} {output}: is the scene's input file {file} (or a link to it)"
+    return None
+
+
+def _same_file(a: Path, b: Path) -> bool:
+    # Also catches hard links, which resolve() cannot see.
+    try:
+        return os.path.samefile(a, b)
+    except OSError:
+        return False
+
+
+def _png_problem(png: Path, inputs: list[Path], overwrite: bool) -> str | None:
+    from .imageio import is_haze_png
+
+    conflict = _output_conflict(png, inputs, "preview")
+    if conflict:
+        return conflict
+    if png.is_dir():
+        return f"preview {png}: is a folder (pass --no-png to skip the preview)"
+    exists = png.exists() or png.is_symlink()
+    if exists and not overwrite and not is_haze_png(png):
+        return (f"preview {png}: exists and was not written by Haze; "
+                "pass --overwrite to replace it or --no-png to skip the preview")
+    return None
+
+
+def _outputs_problem(args, inputs: list[Path]) -> str | None:
+    """Why the outputs would destroy an input or someone's file (checked before rendering)."""
+    conflict = _output_conflict(args.output, inputs, "output")
+    if conflict or args.no_png:
+        return conflict
+    return _png_problem(args.output.with_suffix(".png"), inputs, args.overwrite)
 
 
 class CompileTicker:
@@ -82,19 +178,29 @@ class CompileTicker:
 
 
 def render_command(args) -> int:
+    from .scenefile import load_scene_and_inputs
+    from .validate import check_render_memory
     from .workers import start_workers
 
     problem = _check(args)
     if problem:
         print(f"error: {problem}", file=sys.stderr)
         return 2
-    # Before numba loads here: the workers' start overlaps this process's imports and loading.
+    scene, inputs = load_scene_and_inputs(args.scene)
+    problem = _outputs_problem(args, inputs)
+    if problem:
+        print(f"error: {problem}", file=sys.stderr)
+        return 2
+    check_render_memory(scene.film, args.workers)
+    # Before numba loads here: the workers' start overlaps this process's imports.
     start_workers(args.workers)
+    return _render_and_write(args, scene)
+
+
+def _render_and_write(args, scene) -> int:
     from .imageio import write_exr, write_png
     from .render import render_progressive
-    from .scenefile import load_scene
 
-    scene = load_scene(args.scene)
     s = scene.integrator
     if args.spp is not None:
         s.spp = args.spp
@@ -106,6 +212,7 @@ def render_command(args) -> int:
         s.max_bounces = args.max_bounces
     t0 = time.perf_counter()
     last = None
+    interrupted = False
     ticker = CompileTicker()
     try:
         for last in render_progressive(scene, workers=args.workers, target_error=args.target_error,
@@ -114,13 +221,14 @@ def render_command(args) -> int:
             line = _bar(last.spp, s.spp, last.elapsed, last.error_estimate)
             print(line, end="", file=sys.stderr, flush=True)
     except KeyboardInterrupt:
+        interrupted = True
         print("\ninterrupted: writing the samples so far", file=sys.stderr)
     finally:
         ticker.stop()
     print(file=sys.stderr)
     if last is None:
         print("error: no samples were rendered", file=sys.stderr)
-        return 1
+        return EXIT_INTERRUPTED if interrupted else 1
     write_exr(args.output, last.image)
     msg = f"wrote {args.output}"
     if not args.no_png:
@@ -128,7 +236,7 @@ def render_command(args) -> int:
         write_png(png, last.image)
         msg += f" and {png}"
     seconds = time.perf_counter() - t0
-    samples = last.spp * scene.film.width * scene.film.height
+    samples = last.spp * last.film.width * last.film.height  # the rendered window's pixels
     print(msg, file=sys.stderr)
     if last.note:
         print(f"warning: {last.note}", file=sys.stderr)
@@ -136,7 +244,7 @@ def render_command(args) -> int:
         bad = int(last.film.nonfinite[0])
         print(f"warning: {bad} path values were NaN or infinite and were counted as 0", file=sys.stderr)
     print(f"{last.spp} spp, {seconds:.2f} s, {samples / seconds / 1e6:.3f} M samples/s", file=sys.stderr)
-    return 0
+    return EXIT_INTERRUPTED if interrupted else 0
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -150,4 +258,13 @@ def main(argv: list[str] | None = None) -> int:
     except FileNotFoundError as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
+    except OSError as e:  # e.g. the disk filled up while writing the image
+        print(f"error: {e}", file=sys.stderr)
+        return 1
+    except MemoryError:  # the estimate before rendering was too low, or others took the memory
+        print("error: out of memory while rendering; try a smaller film or fewer --workers", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:  # while loading, or a second Ctrl-C while writing
+        print("\ninterrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
     return 1

@@ -16,11 +16,29 @@ from typing import NamedTuple
 import numpy as np
 
 from .bsdfs.table import build_material_table
+from .camera import (
+    LENS_BLADES,
+    LENS_FOCUS,
+    LENS_INV_RATIO,
+    LENS_RADIUS,
+    LENS_ROTATION,
+    LENS_SIZE,
+    PROJ_FISHEYE_FOV,
+    PROJ_FISHEYE_LENS,
+    PROJ_KIND,
+    PROJ_LAT_MAX,
+    PROJ_LAT_MIN,
+    PROJ_LON_MAX,
+    PROJ_LON_MIN,
+    PROJ_SENSOR_H,
+    PROJ_SENSOR_W,
+    PROJ_SIZE,
+)
 from .lights.table import LightTable, build_light_table
 from .media.compile import build_media_data
 from .media.layout import MediaData
 from .scene import MAX_STACK as MAX_STACK  # re-exported: the integrator sizes its stacks with it
-from .scene import SIDES, Scene
+from .scene import PROJECTIONS, SIDES, Scene
 
 
 class Geometry(NamedTuple):
@@ -45,13 +63,22 @@ class Geometry(NamedTuple):
 
 
 class CameraParams(NamedTuple):
-    """to_world (4, 4) float64; tan_half (x, y) of the half field of view; shift (x, y) in
-    units of the image plane's half extent; clip (start, end)."""
+    """What renderer.camera.camera_ray reads (float64 arrays).
+
+    to_world (4, 4); tan_half (x, y): the image plane's half extent, at distance 1 for a
+    perspective camera, in world units for an orthographic one; shift (x, y) in the same
+    units; clip (start, end); raster: the full frame's width and height and the rendered
+    window's top-left pixel (RASTER_*); lens: the thin lens (LENS_*); projection: the
+    projection's code and the panoramic parameters (PROJ_*).
+    """
 
     to_world: np.ndarray
     tan_half: np.ndarray
     shift: np.ndarray
     clip: np.ndarray
+    raster: np.ndarray
+    lens: np.ndarray
+    projection: np.ndarray
 
 
 @dataclass
@@ -69,6 +96,7 @@ class CompiledScene:
     has_media: bool  # any medium at all: the integrator skips every medium step without
     needs_shadow_walk: bool  # shadow rays must walk through interfaces / transparent surfaces
     scene_radius: float
+    transparent: bool = False  # Film > Transparent: the world seen directly gives alpha 0
 
 
 def _merge_meshes(scene: Scene, material_index: dict[str, int], medium_index: dict[str, int]):
@@ -94,13 +122,47 @@ def _merge_meshes(scene: Scene, material_index: dict[str, int], medium_index: di
 def _camera(scene: Scene) -> CameraParams:
     cam, film = scene.camera, scene.film
     aspect = film.width / film.height
-    t = math.tan(math.radians(cam.fov) * 0.5)
-    tan_half = np.array([t, t / aspect] if cam.fov_axis == "x" else [t * aspect, t], np.float64)
-    # Blender shifts by a fraction of the larger image side; the image plane spans 2 * tan_half.
-    larger = max(tan_half)
-    shift = np.array(cam.shift, np.float64) * 2.0 * larger
-    return CameraParams(np.asarray(cam.to_world, np.float64), tan_half, shift,
-                        np.array([cam.clip_start, cam.clip_end], np.float64))
+    if cam.projection == "orthographic":
+        # The fitted side spans ortho_scale world units (Cycles' viewplane).
+        t = 0.5 * cam.ortho_scale
+    else:
+        t = math.tan(math.radians(cam.fov) * 0.5)
+    half = np.array([t, t / aspect] if cam.fov_axis == "x" else [t * aspect, t], np.float64)
+    # Blender shifts by a fraction of the larger image side; the image plane spans 2 * half.
+    shift = np.array(cam.shift, np.float64) * 2.0 * max(half)
+    x0, y0, _, _ = film.window()
+    raster = np.array([film.width, film.height, x0, y0], np.float64)
+    # C order whatever the scene gave (Blender's matrix_world arrives in Fortran order):
+    # numba compiles the camera kernels once per array layout.
+    to_world = np.ascontiguousarray(cam.to_world, np.float64)
+    return CameraParams(to_world, half, shift,
+                        np.array([cam.clip_start, cam.clip_end], np.float64), raster, _lens(cam),
+                        _projection(cam, aspect))
+
+
+def _lens(cam) -> np.ndarray:
+    lens = np.zeros(LENS_SIZE, np.float64)
+    lens[LENS_RADIUS] = cam.aperture_radius
+    lens[LENS_FOCUS] = max(cam.focus_distance, 1e-5)  # Cycles' floor
+    lens[LENS_BLADES] = cam.aperture_blades if cam.aperture_blades >= 3 else 0
+    lens[LENS_ROTATION] = cam.aperture_rotation
+    lens[LENS_INV_RATIO] = 1.0 / cam.aperture_ratio
+    return lens
+
+
+def _projection(cam, aspect: float) -> np.ndarray:
+    proj = np.zeros(PROJ_SIZE, np.float64)
+    proj[PROJ_KIND] = PROJECTIONS[cam.projection]
+    proj[[PROJ_LON_MIN, PROJ_LON_MAX, PROJ_LAT_MIN, PROJ_LAT_MAX]] = (
+        cam.longitude_min, cam.longitude_max, cam.latitude_min, cam.latitude_max)
+    proj[PROJ_FISHEYE_FOV] = cam.fisheye_fov
+    proj[PROJ_FISHEYE_LENS] = cam.fisheye_lens
+    # Cycles' panoramic sensor: `sensor` along the fitted side, the other side in proportion.
+    if cam.fov_axis == "x":
+        proj[PROJ_SENSOR_W], proj[PROJ_SENSOR_H] = cam.sensor, cam.sensor / aspect
+    else:
+        proj[PROJ_SENSOR_W], proj[PROJ_SENSOR_H] = cam.sensor * aspect, cam.sensor
+    return proj
 
 
 def compile_scene(scene: Scene) -> CompiledScene:
@@ -129,8 +191,11 @@ def compile_scene(scene: Scene) -> CompiledScene:
     see_through = [_lets_light_through(m) for m in scene.materials]
     used = np.unique(tri_mat)
     needs_walk = bool((tri_med >= 0).any()) or any(see_through[i] for i in used)
+    # The film holds the rendered window only (the whole frame without a Render Region).
+    _, _, width, height = scene.film.window()
     return CompiledScene(vertices, indices, geometry, materials, lights, media, _camera(scene),
-                         scene.film.width, scene.film.height, world_medium, has_media, needs_walk, radius)
+                         width, height, world_medium, has_media, needs_walk, radius,
+                         bool(scene.film.transparent))
 
 
 def _lets_light_through(material) -> bool:

@@ -51,10 +51,21 @@ def require(condition: bool, path: str, problem: str) -> None:
         raise SceneError(path, problem)
 
 
+# Longest bad value quoted in a message: errors stay one readable line whatever the input.
+_MAX_SHOWN = 80
+
+
 def show(value: Any) -> str:
     """A short description of a bad value for a message (containers by type, not content)."""
+    if isinstance(value, int) and abs(value) >= 10**30:
+        # repr of a huge integer is long (and raises beyond 4300 digits): give its size.
+        return f"an integer of about {int(value.bit_length() * 0.30103) + 1} digits"
     if value is None or isinstance(value, str | numbers.Number | bool | tuple):
-        return repr(value)
+        try:
+            text = repr(value)
+        except ValueError:  # a tuple holding a huge integer
+            return f"a {type(value).__name__} of {len(value)} items"
+        return text if len(text) <= _MAX_SHOWN else text[: _MAX_SHOWN - 3] + "..."
     return type(value).__name__
 
 
@@ -147,7 +158,7 @@ def _conform_scalar(value: Any, hint: type, path: str) -> Any:
     if hint is int:
         is_int = isinstance(value, numbers.Integral) and not isinstance(value, bool | np.bool_)
         require(is_int, path, f"must be an integer, got {show(value)}")
-        require(-(2**63) <= int(value) < 2**64, path, f"integer out of range, got {int(value)}")
+        require(-(2**63) <= int(value) < 2**64, path, f"integer out of range, got {show(int(value))}")
         return int(value)
     if hint is bool:
         require(isinstance(value, bool | np.bool_), path, f"must be true or false, got {show(value)}")

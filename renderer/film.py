@@ -1,4 +1,5 @@
-"""The film: per-pixel sum, sum of squares and count of path samples.
+"""The film: per-pixel sum, sum of squares and count of path samples, and the sum of
+their alpha.
 
 Keeping the second moment lets callers estimate the error of the current image while it
 renders (the variance of each pixel's mean), and films of disjoint sample ranges merge by
@@ -23,12 +24,14 @@ class Film:
         self.sum = np.zeros((p, 3), np.float64)  # per pixel and channel
         self.sq = np.zeros((p, 3), np.float64)
         self.n = np.zeros(p, np.int64)  # samples per pixel
+        self.alpha = np.zeros(p, np.float64)  # sum of the samples' alpha (1 unless Film > Transparent)
         self.nonfinite = np.zeros(1, np.int64)  # path values that were NaN or inf (added as 0)
 
     def add(self, other: Film) -> None:
         self.sum += other.sum
         self.sq += other.sq
         self.n += other.n
+        self.alpha += other.alpha
         self.nonfinite += other.nonfinite
 
     @property
@@ -42,6 +45,11 @@ class Film:
     def image(self) -> np.ndarray:
         """(H, W, 3) float32 image, row 0 at the top."""
         return self.mean().reshape(self.height, self.width, 3).astype(np.float32)
+
+    def alpha_image(self) -> np.ndarray:
+        """(H, W) float32 mean alpha, row 0 at the top."""
+        mean = self.alpha / np.maximum(self.n, 1)
+        return mean.reshape(self.height, self.width).astype(np.float32)
 
     def variance_of_mean(self) -> np.ndarray:
         """(P, 3) unbiased estimate of each pixel mean's variance (nan where n < 2)."""
@@ -72,9 +80,10 @@ class Film:
 
 
 @kernel
-def splat(n, L, pixel_of_pid, film_sum, film_sq, film_n, film_nonfinite):
-    """Add paths 0..n-1 of a batch (radiance L[pid], pixel pixel_of_pid[pid]) to a Film's
-    arrays: per-pixel sum, sum of squares, count. A non-finite path value (a bug, never
+def splat(n, L, pixel_of_pid, film_sum, film_sq, film_n, film_nonfinite, film_alpha):
+    """Add paths 0..n-1 of a batch (radiance L[pid, :3], pixel pixel_of_pid[pid]) to a
+    Film's arrays: per-pixel sum, sum of squares, count, and alpha = 1 - the path's
+    transparency L[pid, 3] (see integrator.paths.ALPHA). A non-finite path value (a bug, never
     expected) is counted and added as 0, so one bad path cannot ruin an image but cannot
     pass unnoticed either."""
     for i in range(n):
@@ -87,6 +96,7 @@ def splat(n, L, pixel_of_pid, film_sum, film_sq, film_n, film_nonfinite):
             film_sum[px, c] += v
             film_sq[px, c] += v * v
         film_n[px] += 1
+        film_alpha[px] += 1.0 - L[i, 3]
 
 
 def box_mean(image: np.ndarray, radius: int) -> np.ndarray:

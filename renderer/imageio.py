@@ -9,7 +9,9 @@ from __future__ import annotations
 
 import os
 import struct
+import tempfile
 import zlib
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -18,6 +20,9 @@ import OpenEXR
 PathLike = str | os.PathLike[str]
 
 _PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+# Every PNG Haze writes says so in a tEXt chunk; the command line replaces an existing PNG
+# preview only if it carries this mark (see is_haze_png), so it never overwrites other files.
+_PNG_SOFTWARE = b"Software\x00Haze"
 
 
 def _check_rgb(rgb: object, what: str) -> np.ndarray:
@@ -39,6 +44,31 @@ def _make_parent(path: PathLike) -> Path:
     return path
 
 
+def _umask() -> int:
+    mask = os.umask(0o022)  # reading the umask means setting it; put it straight back
+    os.umask(mask)
+    return mask
+
+
+def _write_atomically(path: PathLike, write: Callable[[Path], None]) -> None:
+    """Have `write` fill a temporary file beside `path`, then rename it into place.
+
+    A crash or an interrupt never leaves a half-written image, and renaming replaces a
+    symbolic link at `path` itself rather than writing through it into the file it names.
+    """
+    path = _make_parent(path)
+    handle, name = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    os.close(handle)
+    temporary = Path(name)
+    try:
+        os.chmod(temporary, 0o666 & ~_umask())  # mkstemp makes it private; images are not
+        write(temporary)
+        os.replace(temporary, path)
+    except BaseException:
+        temporary.unlink(missing_ok=True)
+        raise
+
+
 def write_exr(path: PathLike, rgb: np.ndarray) -> None:
     """Writes a float32 (H, W, 3) linear RGB image as a ZIP-compressed scanline EXR.
 
@@ -48,10 +78,16 @@ def write_exr(path: PathLike, rgb: np.ndarray) -> None:
     if rgb.dtype != np.float32:
         # Refuse rather than convert: a silent float64 -> float32 cast would hide precision loss.
         raise ValueError(f"write_exr: rgb must be float32, got {rgb.dtype} (use rgb.astype(np.float32))")
-    path = _make_parent(path)
     channels = {name: np.ascontiguousarray(rgb[:, :, i]) for i, name in enumerate("RGB")}
     header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
-    OpenEXR.File(header, channels).write(str(path))
+    _write_atomically(path, lambda temporary: _write_exr_file(header, channels, temporary))
+
+
+def _write_exr_file(header: dict, channels: dict, file: Path) -> None:
+    try:
+        OpenEXR.File(header, channels).write(str(file))
+    except Exception as err:  # the binding raises bare RuntimeErrors (e.g. a full disk)
+        raise OSError(f"write_exr: cannot write {file}: {err}") from err
 
 
 def read_exr(path: PathLike) -> np.ndarray:
@@ -122,6 +158,7 @@ def encode_png(srgb8: np.ndarray) -> bytes:
             _PNG_SIGNATURE,
             _png_chunk(b"IHDR", ihdr),
             _png_chunk(b"sRGB", b"\x00"),  # tells viewers the bytes are sRGB (perceptual intent)
+            _png_chunk(b"tEXt", _PNG_SOFTWARE),
             _png_chunk(b"IDAT", zlib.compress(rows.tobytes(), 6)),
             _png_chunk(b"IEND", b""),
         ]
@@ -131,4 +168,36 @@ def encode_png(srgb8: np.ndarray) -> bytes:
 def write_png(path: PathLike, rgb_linear: np.ndarray, exposure: float = 0.0) -> None:
     """Writes linear RGB as an 8-bit sRGB PNG after `linear_to_srgb8` (exposure in stops)."""
     data = encode_png(linear_to_srgb8(rgb_linear, exposure))
-    _make_parent(path).write_bytes(data)
+    _write_atomically(path, lambda temporary: temporary.write_bytes(data))
+
+
+def is_haze_png(path: PathLike) -> bool:
+    """Whether `path` is a PNG that Haze wrote (it carries Haze's Software text chunk).
+
+    Reads chunk headers only up to the image data, so a large or foreign file costs little.
+    A symbolic link is never Haze's: replacing it could be mistaken for writing through it.
+    """
+    path = Path(path)
+    if path.is_symlink() or not path.is_file():
+        return False
+    try:
+        with open(path, "rb") as stream:
+            if stream.read(8) != _PNG_SIGNATURE:
+                return False
+            return _has_software_chunk(stream)
+    except OSError:
+        return False
+
+
+def _has_software_chunk(stream) -> bool:
+    while True:
+        head = stream.read(8)
+        if len(head) < 8:
+            return False
+        length, kind = struct.unpack(">I", head[:4])[0], head[4:]
+        if kind in (b"IDAT", b"IEND") or length > 1 << 16:
+            return False
+        body = stream.read(length)
+        if kind == b"tEXt" and body == _PNG_SOFTWARE:
+            return True
+        stream.read(4)  # CRC

@@ -43,6 +43,16 @@ FRESNEL_MODES: dict[str, int] = {"constant": 0, "f82": 1}
 SIDES: dict[str, int] = {"front": 1, "back": 2, "both": 3}
 MEDIUM_TYPES: dict[str, int] = {"homogeneous": 0, "grid": 1}
 FOV_AXES = ("x", "y")
+# Camera projections (Cycles' camera types, the panoramic ones by their panorama type) and
+# the codes the camera kernel dispatches on.
+PROJECTIONS: dict[str, int] = {
+    "perspective": 0,
+    "orthographic": 1,
+    "equirectangular": 2,
+    "fisheye_equidistant": 3,
+    "fisheye_equisolid": 4,
+    "mirrorball": 5,
+}
 SAMPLING_MODES = ("mis", "nee", "bsdf")
 TRANSMITTANCE_MODES = ("ratio", "delta")
 DISTANCE_SAMPLING_MODES = ("spectral_mis", "uniform")
@@ -53,7 +63,25 @@ MAX_STACK = 4
 
 @dataclass
 class Camera:
-    """Perspective pinhole camera. Looks down its local -Z axis with +Y up (Blender's)."""
+    """A camera with Cycles' projections. Looks down its local -Z axis with +Y up (Blender's).
+
+    projection:
+      "perspective"          pinhole (or thin lens with an aperture): `fov` along `fov_axis`.
+      "orthographic"         parallel rays; the `fov_axis` side of the image spans
+                             `ortho_scale` world units.
+      "equirectangular"      longitude [longitude_min, longitude_max] across the image
+                             (left to right), latitude [latitude_min, latitude_max] bottom
+                             to top; longitude 0 looks down -Z.
+      "fisheye_equidistant"  angle from the axis proportional to the distance from the image
+                             centre; `fisheye_fov` across the image's width and height.
+      "fisheye_equisolid"    Cycles' equisolid fisheye: a `fisheye_lens` mm lens on a
+                             `sensor` mm sensor (fitted along `fov_axis`), cut at `fisheye_fov`.
+      "mirrorball"           the view of a mirror ball filling the image.
+    Depth of field (aperture_radius > 0): a thin lens of that radius (world units) focused
+    at `focus_distance` along the view axis (along the ray for panoramic cameras), with a
+    polygonal aperture of `aperture_blades` corners (< 3 = a disk) turned by
+    `aperture_rotation` radians, its x extent divided by `aperture_ratio` (anamorphic).
+    """
 
     to_world: np.ndarray = field(default_factory=lambda: np.eye(4))  # (4, 4) float64, camera-to-world
     fov: float = 40.0  # degrees, full angle along `fov_axis`, in (0, 180)
@@ -61,12 +89,44 @@ class Camera:
     shift: tuple[float, float] = (0.0, 0.0)  # Blender lens shift, in units of the larger image side
     clip_start: float = 1e-4  # world units; nothing nearer is seen
     clip_end: float = 1e30  # world units; nothing farther is seen
+    projection: str = "perspective"  # a PROJECTIONS word
+    ortho_scale: float = 6.0  # orthographic: world units across the `fov_axis` side
+    aperture_radius: float = 0.0  # world units; 0 = pinhole
+    focus_distance: float = 10.0  # world units from the lens, > 0
+    aperture_blades: int = 0  # polygon corners; 0 (or < 3) = round aperture
+    aperture_rotation: float = 0.0  # radians
+    aperture_ratio: float = 1.0  # > 0; anamorphic bokeh: x extent / ratio
+    longitude_min: float = -3.141592653589793  # equirectangular, radians
+    longitude_max: float = 3.141592653589793
+    latitude_min: float = -1.5707963267948966
+    latitude_max: float = 1.5707963267948966
+    fisheye_fov: float = 3.141592653589793  # fisheyes: radians
+    fisheye_lens: float = 10.5  # fisheye_equisolid: mm
+    sensor: float = 36.0  # fisheye_equisolid: mm along `fov_axis`
 
 
 @dataclass
 class Film:
+    """The frame (width x height pixels) and what of it is rendered.
+
+    region: (x, y, width, height) in pixels, row 0 at the top: only that window of the
+    frame is rendered, and the image is the window (Blender's Render Region). None = all.
+    transparent: the world seen directly (through pass-through surfaces and media, not
+    through scattering or refraction) is left out of the image and gives alpha 0, as with
+    Cycles' Film > Transparent; otherwise alpha is 1 everywhere.
+    """
+
     width: int = 128
     height: int = 128
+    region: tuple[int, int, int, int] | None = None
+    transparent: bool = False
+
+    def window(self) -> tuple[int, int, int, int]:
+        """(x, y, width, height) of the rendered pixels."""
+        if self.region is None:
+            return (0, 0, self.width, self.height)
+        x, y, w, h = self.region  # a scene file's numbers may arrive as floats
+        return (int(x), int(y), int(w), int(h))
 
 
 @dataclass

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import math
 import os
 import re
 import tempfile
@@ -38,6 +39,18 @@ from renderer.validate import check_choice, validate_scene
 
 SCENE_FILE = "scene.json"
 ARRAY_DIR = "arrays"
+# Optional top-level key naming the program that wrote the folder. The add-on's exporter
+# writes EXPORT_GENERATOR and recognises its own previous exports by it (see addon/export/folder.py).
+GENERATOR_KEY = "generator"
+EXPORT_GENERATOR = "haze-export"
+# Real scenes nest five levels deep; far deeper JSON is an attack or a bug, not a scene.
+MAX_JSON_DEPTH = 16
+# scene.json holds no bulk data (arrays live in .npy files): a larger one is not a scene, and
+# reading it whole could exhaust memory.
+MAX_SCENE_JSON_BYTES = 64 * 1024 * 1024
+# Python refuses to convert integers of more than 4300 digits (a traceback); longer ones are
+# read as +-inf, so the field they sit in reports them as not finite (or not an integer).
+MAX_INTEGER_DIGITS = 4000
 # Array file names start with the owner's kind and index: mesh0_Cube_vertices.npy.
 _OWNER_PREFIXES = {"meshes": "mesh", "media": "medium"}
 
@@ -45,44 +58,106 @@ _OWNER_PREFIXES = {"meshes": "mesh", "media": "medium"}
 # ----------------------------------------------------------------------------- public API
 
 
-def save_scene(scene: Scene, folder: str | Path) -> Path:
+def save_scene(scene: Scene, folder: str | Path, generator: str | None = None) -> Path:
     """Validate (and so normalise) `scene`, write it to `folder`, return the scene.json path.
 
     Only scene.json and our own array files are (over)written; nothing else in the folder
-    is touched, so a scene can live next to a user's other files.
+    is touched, so a scene can live next to a user's other files. `generator`, if given, is
+    written as scene.json's "generator" key (the exporter's mark on its folders).
     """
     validate_scene(scene)
     folder = Path(folder)
     (folder / ARRAY_DIR).mkdir(parents=True, exist_ok=True)
-    data = {"version": SCENE_FORMAT_VERSION, **_encode(scene, "", "scene", _array_writer(folder))}
+    header: dict[str, Any] = {"version": SCENE_FORMAT_VERSION}
+    if generator is not None:
+        header[GENERATOR_KEY] = generator
+    data = {**header, **_encode(scene, "", "scene", _array_writer(folder))}
     return _write_text_atomically(folder / SCENE_FILE, _to_readable_json(data))
 
 
 def load_scene(folder: str | Path) -> Scene:
     """Read the scene in `folder` (its scene.json and arrays) and validate it."""
-    folder = Path(folder)
-    data = _read_json(folder / SCENE_FILE)
+    return load_scene_and_inputs(folder)[0]
+
+
+def load_scene_and_inputs(folder: str | Path) -> tuple[Scene, list[Path]]:
+    """The validated scene in `folder` and the files it was read from (scene.json first).
+
+    The command line refuses to write its output over any of these files.
+    """
+    source = _Source(Path(folder))
+    data = _read_json(source.folder / SCENE_FILE)
+    source.files.append(source.folder / SCENE_FILE)
     _check_version(data)
-    body = {key: value for key, value in data.items() if key != "version"}
-    scene = _decode_object(body, Scene, "", folder)
+    _check_generator(data)
+    body = {key: value for key, value in data.items() if key not in ("version", GENERATOR_KEY)}
+    scene = _decode_object(body, Scene, "", source)
     validate_scene(scene)
-    return scene
+    return scene, source.files
+
+
+def read_generator(folder: str | Path) -> str | None:
+    """The "generator" of the scene.json in `folder`, or None if it has none or is no scene."""
+    try:
+        data = _read_json(Path(folder) / SCENE_FILE)
+    except SceneError:
+        return None
+    generator = data.get(GENERATOR_KEY)
+    return generator if isinstance(generator, str) else None
 
 
 # -------------------------------------------------------------------------------- loading
+
+
+@dataclasses.dataclass
+class _Source:
+    """The scene folder being read, and every file read from it so far."""
+
+    folder: Path
+    files: list[Path] = dataclasses.field(default_factory=list)
 
 
 def _read_json(file: Path) -> dict:
     if not file.is_file():
         raise SceneError(SCENE_FILE, f"not found in {file.parent}")
     try:
-        data = json.loads(file.read_text(encoding="utf-8"), object_pairs_hook=_reject_duplicate_keys)
+        size = file.stat().st_size
+        too_large = f"is {size} bytes, more than the {MAX_SCENE_JSON_BYTES} bytes a scene.json may have"
+        require(size <= MAX_SCENE_JSON_BYTES, SCENE_FILE, too_large)
+        text = file.read_text(encoding="utf-8")
+        data = json.loads(text, object_pairs_hook=_reject_duplicate_keys, parse_int=_parse_bounded_int)
+    except SceneError:
+        raise
     except (UnicodeDecodeError, json.JSONDecodeError) as error:
         raise SceneError(SCENE_FILE, f"not valid JSON: {error}") from None
-    except OSError as error:
+    except RecursionError:
+        raise SceneError(SCENE_FILE, f"nested deeper than {MAX_JSON_DEPTH} levels") from None
+    except (OSError, ValueError) as error:
         raise SceneError(SCENE_FILE, f"cannot read: {error}") from None
+    except MemoryError:
+        raise SceneError(SCENE_FILE, "too large to read into memory") from None
     require(isinstance(data, dict), SCENE_FILE, f"must hold a JSON object, got {show(data)}")
+    depth = _nesting_depth(data)
+    require(depth <= MAX_JSON_DEPTH, SCENE_FILE, f"nested {depth} levels deep (at most {MAX_JSON_DEPTH})")
     return data
+
+
+def _parse_bounded_int(text: str) -> int | float:
+    if len(text.lstrip("-")) <= MAX_INTEGER_DIGITS:
+        return int(text)
+    return -math.inf if text.startswith("-") else math.inf
+
+
+def _nesting_depth(data: Any) -> int:
+    """How many objects and lists deep `data` nests, measured without recursion."""
+    deepest = 0
+    stack = [(data, 1)]
+    while stack:
+        value, depth = stack.pop()
+        deepest = max(deepest, depth)
+        children = value.values() if isinstance(value, dict) else value
+        stack.extend((child, depth + 1) for child in children if isinstance(child, dict | list))
+    return deepest
 
 
 def _reject_duplicate_keys(pairs: list[tuple[str, Any]]) -> dict:
@@ -101,29 +176,36 @@ def _check_version(data: dict) -> None:
     require(is_int, "version", f"must be an integer, got {show(version)}")
     supported = version == SCENE_FORMAT_VERSION
     require(
-        supported, "version", f"unsupported format version {version} (this Haze reads {SCENE_FORMAT_VERSION})"
+        supported,
+        "version",
+        f"unsupported format version {show(version)} (this Haze reads {SCENE_FORMAT_VERSION})",
     )
 
 
-def _decode(value: Any, hint: Any, path: str, field_name: str, folder: Path) -> Any:
+def _check_generator(data: dict) -> None:
+    generator = data.get(GENERATOR_KEY, "")
+    require(isinstance(generator, str), GENERATOR_KEY, f"must be a string, got {show(generator)}")
+
+
+def _decode(value: Any, hint: Any, path: str, field_name: str, source: _Source) -> Any:
     """Turn JSON `value` into the Python value annotated by `hint`."""
     hint, optional = split_optional(hint)
     if value is None and optional:
         return None
     if dataclasses.is_dataclass(hint):
-        return _decode_object(value, hint, path, folder)
+        return _decode_object(value, hint, path, source)
     if is_union(hint):
-        return _decode_object(value, _light_class(value, path), path, folder)
+        return _decode_object(value, _light_class(value, path), path, source)
     if typing.get_origin(hint) is list:
         require(isinstance(value, list), path, f"must be a list, got {show(value)}")
         item_hint = typing.get_args(hint)[0]
-        return [_decode(item, item_hint, f"{path}[{i}]", "", folder) for i, item in enumerate(value)]
+        return [_decode(item, item_hint, f"{path}[{i}]", "", source) for i, item in enumerate(value)]
     if hint is np.ndarray and field_name not in MATRIX_FIELDS:
-        return _read_array(value, ARRAY_DTYPES[field_name], path, folder)
+        return _read_array(value, ARRAY_DTYPES[field_name], path, source)
     return conform(value, hint, path, field_name)  # leaves: the same checks as in-memory values
 
 
-def _decode_object(value: Any, cls: type, path: str, folder: Path) -> Any:
+def _decode_object(value: Any, cls: type, path: str, source: _Source) -> Any:
     require(isinstance(value, dict), path or SCENE_FILE, f"must be a JSON object, got {show(value)}")
     fields = {f.name: f for f in dataclasses.fields(cls)}
     for key in value:
@@ -133,7 +215,7 @@ def _decode_object(value: Any, cls: type, path: str, folder: Path) -> Any:
         required = f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING
         require(not required or f.name in value, join(path, f.name), "missing required key")
     hints = field_hints(cls)
-    decoded = {key: _decode(item, hints[key], join(path, key), key, folder) for key, item in value.items()}
+    decoded = {key: _decode(item, hints[key], join(path, key), key, source) for key, item in value.items()}
     return cls(**decoded)
 
 
@@ -146,22 +228,69 @@ def _light_class(value: Any, path: str) -> type:
     return LIGHT_TYPES[kind]
 
 
-def _read_array(value: Any, dtype: np.dtype, path: str, folder: Path) -> np.ndarray:
+def _read_array(value: Any, dtype: np.dtype, path: str, source: _Source) -> np.ndarray:
     require(isinstance(value, str), path, f"must be the name of a .npy file, got {show(value)}")
-    require(not Path(value).is_absolute(), path, f"must be relative to the scene folder, got {value!r}")
-    file = folder / value
-    require(file.is_file(), path, f"file {value!r} not found")
+    file = _file_inside(source.folder, value, path)
+    shown = show(value)
     try:
+        _check_npy_header(file, dtype, path, shown)
         array = np.load(file, allow_pickle=False)
+    except SceneError:
+        raise
     except (OSError, ValueError, EOFError, MemoryError) as error:
-        raise SceneError(path, f"cannot read {value!r} as .npy: {error}") from None
+        raise SceneError(path, f"cannot read {shown} as .npy: {error}") from None
     if not isinstance(array, np.ndarray):  # an .npz archive
         array.close()
-        raise SceneError(path, f"{value!r} is not a single-array .npy file")
-    require(
-        array.dtype == dtype, path, f"file {value!r} holds {array.dtype}; files must hold exactly {dtype}"
-    )
+        raise SceneError(path, f"{shown} is not a single-array .npy file")
+    source.files.append(file)
     return array
+
+
+def _file_inside(folder: Path, value: str, path: str) -> Path:
+    """The file `value` names inside the scene folder, which it must not leave.
+
+    The folder is a sandbox: absolute paths, `..` and symbolic links leading out of it are
+    refused with one message, whether or not the target exists, so a scene cannot read (or
+    probe for) files elsewhere.
+    """
+    outside = f"must be relative to the scene folder and stay in it (no '..' or link out), got {show(value)}"
+    relative = Path(value)
+    require(value != "" and not relative.is_absolute() and ".." not in relative.parts, path, outside)
+    try:
+        root = folder.resolve()
+        file = (folder / relative).resolve()
+        inside = file.is_relative_to(root)
+        exists = inside and file.is_file()
+    except (OSError, RuntimeError, ValueError):  # a link loop, a NUL byte, a name too long
+        raise SceneError(path, outside) from None
+    require(inside, path, outside)
+    require(exists, path, f"file {show(value)} not found")
+    return file
+
+
+def _check_npy_header(file: Path, dtype: np.dtype, path: str, shown: str) -> None:
+    """Refuse a .npy file whose header lies before numpy allocates what it claims.
+
+    A negative dimension, or a shape whose data is not exactly the rest of the file, would
+    otherwise be accepted or make numpy try to allocate terabytes.
+    """
+    readers = {(1, 0): np.lib.format.read_array_header_1_0, (2, 0): np.lib.format.read_array_header_2_0}
+    with open(file, "rb") as stream:
+        zipped = stream.read(4) == b"PK\x03\x04"
+        require(not zipped, path, f"{shown} is not a single-array .npy file (it is a zip/.npz archive)")
+        stream.seek(0)
+        version = np.lib.format.read_magic(stream)
+        require(version in readers, path, f"{shown} is .npy version {version}, not 1.0 or 2.0")
+        shape, _, file_dtype = readers[version](stream)
+        data_bytes = file.stat().st_size - stream.tell()
+    require(all(n >= 0 for n in shape), path, f"{shown} has a negative dimension in its shape {shape}")
+    # Object arrays are pickles, which are never loaded: they could run code.
+    require(not file_dtype.hasobject, path, f"cannot read {shown} as .npy: it holds Python objects")
+    require(file_dtype == dtype, path, f"file {shown} holds {file_dtype}; files must hold exactly {dtype}")
+    needed = math.prod(shape) * file_dtype.itemsize
+    require(
+        needed == data_bytes, path, f"{shown} has {data_bytes} data bytes; its shape {shape} needs {needed}"
+    )
 
 
 # --------------------------------------------------------------------------------- saving

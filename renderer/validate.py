@@ -10,6 +10,7 @@ problem is a SceneError whose message starts with the field path, e.g. `meshes[2
 
 from __future__ import annotations
 
+import os
 from collections.abc import Collection
 from typing import Any
 
@@ -25,6 +26,7 @@ from renderer.scene import (
     LIGHT_TYPES,
     LOBE_KINDS,
     MEDIUM_TYPES,
+    PROJECTIONS,
     SAMPLING_MODES,
     SIDES,
     TRANSMITTANCE_MODES,
@@ -45,6 +47,26 @@ MIN_BATCH_SIZE, MAX_BATCH_SIZE = 1024, 1 << 22
 GRID_ARRAYS = ("density", "flame", "temperature")
 # Relative singularity threshold, see _is_singular.
 _SINGULAR_TOLERANCE = 1e-12
+# Limits that keep the float32 kernels finite. A float32 holds at most 3.4e38; a path value
+# multiplies radiance by weights, coefficients and geometry terms (distances squared among
+# them), so radiometric inputs and their products stay below MAX_MAGNITUDE and coordinates
+# below MAX_COORDINATE, leaving about twenty orders of magnitude of headroom.
+MAX_MAGNITUDE = 1e18
+MAX_COORDINATE = 1e15
+# A transform's columns scale by at most this factor either way; beyond it float32 loses all
+# precision (or overflows) when the kernels apply it.
+MAX_SCALE = 1e12
+# Directions are normalised; below this length their square underflows float32.
+MIN_DIRECTION_LENGTH = 1e-12
+MAX_IOR = 1e6
+# Stefan-Boltzmann radiance scaled as Cycles does (renderer/media/blackbody.py): times T^4.
+_BLACKBODY_FACTOR = 5.670373e-8 / np.pi * 1e-6
+# Bytes per pixel a render holds: the film's sums, squares and counts (2 * 24 + 8), and
+# per progress update the float32 image with the float64 mean and variance behind it.
+FILM_BYTES_PER_PIXEL = 56
+PROGRESS_BYTES_PER_PIXEL = 12 + 24 + 24
+# Each worker process fills its own film, and the parent holds it again while merging.
+WORKER_BYTES_PER_PIXEL = 2 * FILM_BYTES_PER_PIXEL
 
 
 def validate_scene(scene: Scene) -> None:
@@ -73,6 +95,7 @@ def validate_scene(scene: Scene) -> None:
         _check_medium(medium, f"media[{i}]")
     _check_nonnegative_rgb(scene.environment.radiance, "environment.radiance")
     _check_reference(scene.medium, medium_names, "medium", "medium")
+    _check_path_growth(scene)
 
 
 def validate_medium(medium: Medium, path: str) -> None:
@@ -92,6 +115,46 @@ def validate_material(material: Material, path: str) -> None:
     _check_material(material, path)
 
 
+def render_memory_bytes(film: Film, workers: int) -> int:
+    """An estimate of the memory a render of `film` with `workers` processes needs."""
+    pixels = film.width * film.height
+    extra_workers = workers if workers > 1 else 0  # one worker renders in the calling process
+    return pixels * (FILM_BYTES_PER_PIXEL + PROGRESS_BYTES_PER_PIXEL + extra_workers * WORKER_BYTES_PER_PIXEL)
+
+
+def available_memory_bytes() -> int | None:
+    """Memory the machine can give a new render now (Linux MemAvailable), or None if unknown."""
+    try:
+        with open("/proc/meminfo", encoding="ascii") as meminfo:
+            for line in meminfo:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    try:
+        return os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    except (OSError, ValueError, AttributeError):
+        return None
+
+
+def check_render_memory(film: Film, workers: int, available: int | None = None) -> None:
+    """Refuse a film whose render would need more memory than the machine has.
+
+    The validator allows films up to MAX_FILM_SIDE on a side; whether one fits depends on
+    the machine, so the command line checks it before rendering instead of failing with a
+    MemoryError (or the system killing the process) partway through.
+    """
+    available = available_memory_bytes() if available is None else available
+    needed = render_memory_bytes(film, workers)
+    if available is not None and needed > available:
+        size = f"{film.width}x{film.height}"
+        raise SceneError(
+            "film",
+            f"a {size} render with {workers} worker(s) needs about {needed / 1e9:.1f} GB of memory; "
+            f"this machine has {available / 1e9:.1f} GB available",
+        )
+
+
 def check_choice(value: str, allowed: Collection[str], path: str, what: str) -> None:
     """`value` is one of `allowed` (a tuple of words or a dict keyed by them)."""
     expected = ", ".join(repr(a) for a in allowed)
@@ -99,11 +162,32 @@ def check_choice(value: str, allowed: Collection[str], path: str, what: str) -> 
 
 
 def _check_nonnegative_rgb(rgb: tuple[float, ...], path: str) -> None:
+    """A colour, coefficient or radiometric quantity: >= 0 and small enough for float32 paths."""
     require(min(rgb) >= 0.0, path, f"must not be negative, got {rgb}")
+    _check_magnitude(max(rgb), path)
 
 
-def _check_nonzero_vector(vector: tuple[float, ...], path: str) -> None:
+def _check_magnitude(value: float, path: str, what: str = "") -> None:
+    """`value` (or the product `what` describes) is at most MAX_MAGNITUDE."""
+    shown = f"{what} = {value:.3g}" if what else f"got {value:.3g}"
+    limit = f"must be at most {MAX_MAGNITUDE:g} (float32 kernels overflow)"
+    require(value <= MAX_MAGNITUDE, path, f"{limit}, {shown}")
+
+
+def _check_coordinates(values: np.ndarray | tuple[float, ...], path: str) -> None:
+    largest = float(np.max(np.abs(values))) if np.size(values) else 0.0
+    ok = largest <= MAX_COORDINATE
+    require(ok, path, f"coordinates must be within +-{MAX_COORDINATE:g} (float32 kernels), got {largest:.3g}")
+
+
+def _check_direction(vector: tuple[float, ...], path: str) -> None:
+    """A direction the kernels normalise: neither (nearly) zero nor so long its square overflows."""
     require(any(x != 0.0 for x in vector), path, "must be a non-zero vector")
+    largest = max(abs(x) for x in vector)
+    long_enough = largest >= MIN_DIRECTION_LENGTH
+    problem = f"too short to normalise: length {largest:.3g} (at least {MIN_DIRECTION_LENGTH:g})"
+    require(long_enough, path, problem)
+    _check_coordinates(vector, path)
 
 
 def _check_reference(name: str | None, known: set[str], path: str, what: str) -> None:
@@ -135,11 +219,27 @@ def _is_singular(linear: np.ndarray) -> bool:
     return abs(np.linalg.det(scaled)) <= _SINGULAR_TOLERANCE * np.prod(np.linalg.norm(scaled, axis=0))
 
 
-def _check_transform(matrix: np.ndarray, path: str) -> None:
-    """An invertible affine 4x4 transform (the kernels use only its top three rows)."""
+def _check_transform(matrix: np.ndarray, path: str, check_range: bool = True) -> None:
+    """An invertible affine 4x4 transform (the kernels use only its top three rows).
+
+    `check_range=False` leaves the scale check to a caller that checks the transform's
+    product with another scale (a grid medium's box).
+    """
     affine = np.allclose(matrix[3], (0.0, 0.0, 0.0, 1.0), rtol=0.0, atol=1e-9)
     require(affine, path, f"last row must be (0, 0, 0, 1), got {tuple(matrix[3].tolist())}")
     require(not _is_singular(matrix[:3, :3]), path, "singular matrix")
+    if check_range:
+        _check_transform_range(matrix, path)
+
+
+def _check_transform_range(matrix: np.ndarray, path: str) -> None:
+    """Scale and translation the float32 kernels can apply without overflow or losing all precision."""
+    scales = np.abs(matrix[:3, :3]).max(axis=0)  # the largest entry of each column
+    for axis, scale in zip("xyz", scales):
+        ok = 1.0 / MAX_SCALE <= scale <= MAX_SCALE
+        bounds = f"[{1 / MAX_SCALE:g}, {MAX_SCALE:g}]"
+        require(ok, path, f"scales the {axis} axis by {scale:.3g}; must be within {bounds}")
+    _check_coordinates(matrix[:3, 3], path)
 
 
 def _check_camera(camera: Camera, path: str) -> None:
@@ -152,12 +252,45 @@ def _check_camera(camera: Camera, path: str) -> None:
         f"{path}.clip_end",
         f"must be > clip_start ({camera.clip_start}), got {camera.clip_end}",
     )
+    check_choice(camera.projection, PROJECTIONS, f"{path}.projection", "projection")
+    _check_lens(camera, path)
+    _check_panorama(camera, path)
+
+
+def _check_lens(camera: Camera, path: str) -> None:
+    require(camera.ortho_scale > 0.0, f"{path}.ortho_scale", f"must be > 0, got {camera.ortho_scale}")
+    require(camera.aperture_radius >= 0.0, f"{path}.aperture_radius",
+            f"must be >= 0, got {camera.aperture_radius}")
+    require(camera.focus_distance > 0.0, f"{path}.focus_distance",
+            f"must be > 0, got {camera.focus_distance}")
+    require(0 <= camera.aperture_blades <= 256, f"{path}.aperture_blades",
+            f"must be in [0, 256], got {camera.aperture_blades}")
+    require(camera.aperture_ratio > 0.0, f"{path}.aperture_ratio",
+            f"must be > 0, got {camera.aperture_ratio}")
+
+
+def _check_panorama(camera: Camera, path: str) -> None:
+    require(camera.longitude_min < camera.longitude_max, f"{path}.longitude_max",
+            f"must be > longitude_min ({camera.longitude_min}), got {camera.longitude_max}")
+    require(camera.latitude_min < camera.latitude_max, f"{path}.latitude_max",
+            f"must be > latitude_min ({camera.latitude_min}), got {camera.latitude_max}")
+    require(0.0 < camera.fisheye_fov <= 2.0 * np.pi, f"{path}.fisheye_fov",
+            f"must be in (0, 2 pi] radians, got {camera.fisheye_fov}")
+    require(camera.fisheye_lens > 0.0, f"{path}.fisheye_lens", f"must be > 0, got {camera.fisheye_lens}")
+    require(camera.sensor > 0.0, f"{path}.sensor", f"must be > 0, got {camera.sensor}")
 
 
 def _check_film(film: Film, path: str) -> None:
     for name in ("width", "height"):
         size = getattr(film, name)
         require(1 <= size <= MAX_FILM_SIDE, f"{path}.{name}", f"must be in [1, {MAX_FILM_SIDE}], got {size}")
+    if film.region is not None:
+        require(all(float(v).is_integer() for v in film.region), f"{path}.region",
+                f"must be whole pixels, got {tuple(film.region)}")
+        x, y, w, h = film.region
+        inside = 0 <= x and 0 <= y and w >= 1 and h >= 1 and x + w <= film.width and y + h <= film.height
+        require(inside, f"{path}.region", f"must be a non-empty window of the {film.width}x{film.height} "
+                f"frame, got {tuple(film.region)}")
 
 
 def _check_integrator(settings: IntegratorSettings, path: str) -> None:
@@ -192,6 +325,7 @@ def _check_lobe(lobe: Lobe, path: str) -> None:
     roughness_ok = 0.0 <= lobe.roughness <= 1.0
     require(roughness_ok, f"{path}.roughness", f"must be in [0, 1], got {lobe.roughness}")
     require(lobe.ior > 0.0, f"{path}.ior", f"must be > 0, got {lobe.ior}")
+    require(lobe.ior <= MAX_IOR, f"{path}.ior", f"must be at most {MAX_IOR:g}, got {lobe.ior}")
     check_choice(lobe.sides, SIDES, f"{path}.sides", "sides value")
     check_choice(lobe.fresnel, FRESNEL_MODES, f"{path}.fresnel", "Fresnel mode")
     fresnel_ok = lobe.fresnel == "constant" or lobe.kind in CONDUCTOR_KINDS
@@ -200,8 +334,35 @@ def _check_lobe(lobe: Lobe, path: str) -> None:
     require(tint_ok, f"{path}.tint", f"must be three numbers in [0, 1], got {lobe.tint}")
 
 
+def _material_albedo(material: Material) -> float:
+    """The most a bounce off `material` can multiply a path's value by: its lobes' weight x color."""
+    return sum(max(w * c for w, c in zip(lobe.weight, lobe.color)) for lobe in material.lobes)
+
+
+def _check_path_growth(scene: Scene) -> None:
+    """Paths that gain energy at every bounce must not overflow float32 by the last bounce.
+
+    Each value is bounded on its own, but a material whose weight x color exceeds 1 makes a
+    path's throughput grow geometrically: albedo ** (max_bounces + 1) times a radiance of up
+    to MAX_MAGNITUDE must stay finite, so the growth itself is held below MAX_MAGNITUDE.
+    Logarithms, because the power itself may overflow even a Python float.
+    """
+    albedos = [_material_albedo(material) for material in scene.materials]
+    if not albedos or max(albedos) <= 1.0:
+        return
+    worst = int(np.argmax(albedos))
+    bounces = scene.integrator.max_bounces + 1
+    if bounces * np.log10(albedos[worst]) > np.log10(MAX_MAGNITUDE):
+        raise SceneError(
+            f"materials[{worst}].lobes",
+            f"weight x color up to {albedos[worst]:.3g} grows a path {albedos[worst]:.3g}^{bounces} times "
+            f"over integrator.max_bounces = {bounces - 1}; must stay below {MAX_MAGNITUDE:g}",
+        )
+
+
 def _check_mesh(mesh: Mesh, path: str, material_names: set[str], medium_names: set[str]) -> None:
     vertex_count = _check_rows_of_three(mesh.vertices, f"{path}.vertices", "V")
+    _check_coordinates(mesh.vertices, f"{path}.vertices")
     triangle_count = _check_rows_of_three(mesh.indices, f"{path}.indices", "T")
     _check_index_range(mesh.indices, vertex_count, f"{path}.indices", "vertices")
     if mesh.normals is not None:
@@ -254,7 +415,9 @@ def _check_light(light: Any, path: str) -> None:
         if hasattr(light, name):
             _check_nonnegative_rgb(getattr(light, name), f"{path}.{name}")
     if hasattr(light, "direction"):
-        _check_nonzero_vector(light.direction, f"{path}.direction")
+        _check_direction(light.direction, f"{path}.direction")
+    if hasattr(light, "position"):
+        _check_coordinates(light.position, f"{path}.position")
     if isinstance(light, SpotLight):
         size_ok = 0.0 < light.spot_size <= 180.0
         require(size_ok, f"{path}.spot_size", f"must be in (0, 180] degrees, got {light.spot_size}")
@@ -270,21 +433,49 @@ def _check_medium(medium: Medium, path: str) -> None:
     for name in ("sigma_a", "sigma_s", "emission"):
         _check_nonnegative_rgb(getattr(medium, name), f"{path}.{name}")
     require(medium.scale >= 0.0, f"{path}.scale", f"must be >= 0, got {medium.scale}")
+    _check_magnitude(medium.scale, f"{path}.scale")
     require(abs(medium.g) < 1.0, f"{path}.g", f"must satisfy |g| < 1, got {medium.g}")
     bb = medium.blackbody_intensity
     require(bb >= 0.0, f"{path}.blackbody_intensity", f"must be >= 0, got {bb}")
+    _check_magnitude(bb, f"{path}.blackbody_intensity")
     if medium.type == "homogeneous":
         for name in GRID_ARRAYS:
             carries = getattr(medium, name) is not None
             require(
                 not carries, f"{path}.{name}", "only grid media take grid arrays (type is 'homogeneous')"
             )
+        _check_medium_products(medium, path, 1.0, 1.0, 0.0)
         return
     require(medium.density is not None, f"{path}.density", "required for grid media")
     for name in GRID_ARRAYS:
         if getattr(medium, name) is not None:
             _check_grid_array(getattr(medium, name), f"{path}.{name}")
+    _check_coordinates(medium.p0, f"{path}.p0")
+    _check_coordinates(medium.p1, f"{path}.p1")
     _check_grid_box(medium, path)
+    flame = _grid_max(medium.flame, 1.0)
+    hottest = _grid_max(medium.temperature, 0.0)
+    _check_medium_products(medium, path, _grid_max(medium.density, 0.0), flame, hottest)
+
+
+def _grid_max(grid: np.ndarray | None, default: float) -> float:
+    return float(grid.max()) if grid is not None else default
+
+
+def _check_medium_products(
+    medium: Medium, path: str, density: float, flame: float, temperature: float
+) -> None:
+    """The products the kernels form from a medium's values stay below MAX_MAGNITUDE.
+
+    Each factor may be fine alone while their product overflows float32, e.g. sigma_s 1e18
+    times a density of 1e30. Python floats (float64) hold every product checked here.
+    """
+    extinction = max(a + s for a, s in zip(medium.sigma_a, medium.sigma_s)) * medium.scale * density
+    _check_magnitude(extinction, f"{path}.scale", "(sigma_a + sigma_s) * scale * max density")
+    emission = max(medium.emission) * max(density, 1.0) * flame
+    _check_magnitude(emission, f"{path}.emission", "emission * max density * max flame")
+    blackbody = _BLACKBODY_FACTOR * medium.blackbody_intensity * temperature**4 * max(density, 1.0)
+    _check_magnitude(blackbody, f"{path}.temperature", "blackbody radiance * max density")
 
 
 def _check_grid_array(grid: np.ndarray, path: str) -> None:
@@ -296,7 +487,11 @@ def _check_grid_array(grid: np.ndarray, path: str) -> None:
 def _check_grid_box(medium: Medium, path: str) -> None:
     for axis, low, high in zip("xyz", medium.p0, medium.p1):
         require(low != high, f"{path}.p1", f"equals p0 on the {axis} axis ({high}): the grid box is flat")
-    _check_transform(medium.to_world, f"{path}.to_world")
+    _check_transform(medium.to_world, f"{path}.to_world", check_range=False)
     with np.errstate(over="ignore"):  # an overflowing box is caught as singular just below
         box_to_world = medium.to_world[:3, :3] @ np.diag(np.subtract(medium.p1, medium.p0))
     require(not _is_singular(box_to_world), f"{path}.to_world", "singular matrix (combined with p0..p1)")
+    # The kernels map the unit cube to the world by this product, so its scale is what must fit.
+    combined = medium.to_world.copy()
+    combined[:3, :3] = box_to_world
+    _check_transform_range(combined, f"{path}.to_world")

@@ -216,8 +216,10 @@ class Pool:
         return [w.process.pid for w in self.workers if w.alive() and w.process.pid is not None]
 
     def shutdown(self) -> None:
+        # Terminated, not asked: an idle worker holds nothing to save, and one still starting
+        # would otherwise hold up the exit until its imports are done.
         for worker in self.workers:
-            worker.stop(terminate=worker.unit is not None)
+            worker.stop(terminate=True)
         self.workers = []
 
 

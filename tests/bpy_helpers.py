@@ -66,9 +66,12 @@ def blender_environment(tmp: Path, numba_cache: Path | None) -> dict[str, str]:
     user = tmp / "blender_user"
     home.mkdir(parents=True, exist_ok=True)
     user.mkdir(parents=True, exist_ok=True)
-    env = {k: v for k, v in os.environ.items() if not k.startswith(("BLENDER_", "NUMBA_", "PYTHON"))}
+    env = {k: v for k, v in os.environ.items() if not k.startswith(("BLENDER_", "NUMBA_", "PYTHON", "HAZE_"))}
     env.update(HOME=str(home), BLENDER_USER_RESOURCES=str(user), XDG_CACHE_HOME=str(home / ".cache"),
                XDG_CONFIG_HOME=str(home / ".config"), PYTHONUNBUFFERED="1")
+    # No background compile at add-on enable unless a test asks for it (HAZE_BACKGROUND_COMPILE=1;
+    # headless Blender has it off by default anyway): it would compete for the two cores.
+    env["HAZE_BACKGROUND_COMPILE"] = "0"
     if numba_cache is not None:
         env["NUMBA_CACHE_DIR"] = str(numba_cache)
     return env
@@ -110,11 +113,13 @@ def isolated_site(tmp: Path) -> Path:
 
 
 def run_blender(body: str, tmp: Path, *, timeout: float = 900.0, numba_cache: Path | None = None,
-                dev_paths: bool = True, site: Path | None = None) -> BlenderRun:
+                dev_paths: bool = True, site: Path | None = None, env: dict[str, str] | None = None
+                ) -> BlenderRun:
     """Run `body` (Python source defining `main() -> dict`) with bpy in a subprocess.
 
     dev_paths: put the repository, tests/ and examples/ on sys.path (the add-on from this
     checkout). site: run isolated (python -S) with only this site folder for packages.
+    env: extra environment variables.
     """
     tmp.mkdir(parents=True, exist_ok=True)
     paths = [str(TESTS), str(EXAMPLES), str(REPO)] if dev_paths else [str(TESTS)]
@@ -123,8 +128,9 @@ def run_blender(body: str, tmp: Path, *, timeout: float = 900.0, numba_cache: Pa
     script = tmp / "blender_script.py"
     script.write_text(PRELUDE.format(paths=paths) + textwrap.dedent(body) + EPILOGUE)
     result_file = tmp / "result.json"
+    extra = env or {}
     env = blender_environment(tmp, numba_cache)
-    env["HAZE_TEST_RESULT"] = str(result_file)
+    env.update(extra, HAZE_TEST_RESULT=str(result_file))
     command = [PYTHON, "-S", str(script)] if site is not None else [PYTHON, str(script)]
     process = subprocess.run(command, cwd=tmp, env=env, capture_output=True, text=True, timeout=timeout)
     result = json.loads(result_file.read_text()) if result_file.is_file() else {}

@@ -123,9 +123,8 @@ def main():
         "engine_registered": "HAZE" in engines,
         "modules": modules,
         "extension_dir": extension_dir,
-        "user_cache": bpy.utils.extension_path_user(package, path="numba_cache"),
         "numba_cache": cache,
-        "cache_files": len(glob.glob(os.path.join(cache, "**", "*.nbi"), recursive=True)),
+        "cache_files": len(glob.glob(os.path.join(cache, "kernels-*", "**", "*.nbi"), recursive=True)),
         "exr": path,
     }
 '''
@@ -161,9 +160,9 @@ def test_built_extension_installs_and_renders_with_bundled_wheels(built_zip, tmp
     bundled = user / "extensions" / ".local" / "lib" / "python3.11" / "site-packages"
     for name, file in result["modules"].items():
         assert Path(file).resolve().is_relative_to(bundled), f"{name} imported from {file}"
-    # Numba's cache lives in the extension's user folder, never in the extension itself.
-    assert Path(result["numba_cache"]) == Path(result["user_cache"])
-    assert Path(result["numba_cache"]).resolve().is_relative_to(user)
+    # The kernels go to the command line's per-user cache (~/.cache/haze), never into the extension.
+    home = (tmp_path / "run" / "home").resolve()
+    assert Path(result["numba_cache"]).resolve() == home / ".cache" / "haze"
     assert result["cache_files"] > 0
     extension_dir = Path(result["extension_dir"])
     assert not list(extension_dir.rglob("*.nbi")) and not list(bundled.rglob("*.nbi"))

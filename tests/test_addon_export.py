@@ -258,11 +258,12 @@ def error_cases(scene):
     from addon.export.messages import ExportError
     errors = {}
     camera = scene.camera
-    camera.data.type = "ORTHO"
+    camera.data.type = "PANO"
+    camera.data.panorama_type = "CENTRAL_CYLINDRICAL"
     try:
         export_viewport()
     except ExportError as error:
-        errors["ortho"] = str(error)
+        errors["cylindrical"] = str(error)
     camera.data.type = "PERSP"
     scene.camera = None
     try:
@@ -400,7 +401,7 @@ def test_camera_matches_blender_projection(exported):
 
 def test_camera_errors_name_the_problem(exported):
     errors = exported["errors"]
-    assert "Object 'Camera'" in errors["ortho"] and "orthographic" in errors["ortho"]
+    assert "Object 'Camera'" in errors["cylindrical"] and "central cylindrical" in errors["cylindrical"]
     assert "no active camera" in errors["no_camera"]
 
 

@@ -20,6 +20,7 @@ from addon.export.messages import ExportError
 from addon.export.scene import ExportResult
 from addon.export.validate import describe_scene_error
 from addon.session import (
+    COMPILING_TEXT,
     MAX_REPORTED_WARNINGS,
     RenderSession,
     format_duration,
@@ -111,8 +112,10 @@ def pass_image(spp: int) -> np.ndarray:
 class FakeRenderer:
     """render_progressive stand-in: `passes` passes of one sample; may fail at one of them."""
 
-    def __init__(self, passes: int = 3, fail_at: int | None = None, error: BaseException | None = None):
+    def __init__(self, passes: int = 3, fail_at: int | None = None, error: BaseException | None = None,
+                 cold: bool = False):
         self.passes, self.fail_at, self.error = passes, fail_at, error
+        self.cold = cold  # kernels missing from the cache: announce the compile, as the renderer does
         self.closed = False
         self.kwargs = None
 
@@ -121,6 +124,8 @@ class FakeRenderer:
         return self._frames()
 
     def _frames(self):
+        if self.cold:
+            self.kwargs["on_compile"](["shade_surface", "shade_media"])
         try:
             for spp in range(1, self.passes + 1):
                 if spp == self.fail_at:
@@ -148,8 +153,17 @@ def test_complete_render_reports_progress_and_ends_the_result_once():
     assert "Sample 3/3" in engine.stats[-1] and "Elapsed 00:01.50" in engine.stats[-1]
     image = shown_image(engine)
     assert np.allclose(image[..., :3], pass_image(3)) and np.all(image[..., 3] == 1)
-    assert renderer.closed and renderer.kwargs == {"workers": 1, "target_error": 0.0, "validate": False}
+    assert renderer.closed and set(renderer.kwargs) == {"workers", "target_error", "validate", "on_compile"}
+    assert renderer.kwargs["workers"] == 1 and renderer.kwargs["target_error"] == 0.0
     assert not [r for r in engine.reports if r[0] == "ERROR"]
+    assert COMPILING_TEXT not in engine.stats  # warm cache: nothing to say
+
+
+def test_cold_cache_shows_the_compile_message_before_the_first_pass():
+    engine = run(FakeEngine(), FakeRenderer(passes=2, cold=True))
+    assert engine.stats[:3] == ["Haze | Exporting scene", "Haze | Rendering", COMPILING_TEXT]
+    assert COMPILING_TEXT == "Haze | Compiling kernels (first run only)…"
+    assert "Sample 2/2" in engine.stats[-1]
 
 
 def test_test_break_keeps_the_partial_image():

@@ -8,11 +8,12 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from addon.export.camera import contract_shift, field_of_view, film_size
+from addon.display import ResultBuffer, render_region
+from addon.export.camera import aperture_radius, contract_shift, field_of_view, film_size, projection_of
 from addon.export.lights import area_outline, fan_triangles
 from addon.export.materials import choose_emission, close_open_sides, convert_material
 from addon.export.mesh import LocalGeometry, edge_problems, transform
-from addon.export.messages import Messages
+from addon.export.messages import ExportError, Messages
 from addon.export.node_closures import (
     F82_COS,
     Term,
@@ -125,3 +126,38 @@ def test_camera_fit_and_shift():
     assert contract_shift(camera, "x", 100, 200) == pytest.approx((0.05, 0.1))
     render = SimpleNamespace(resolution_x=1920, resolution_y=1080, resolution_percentage=50)
     assert film_size(render) == (960, 540)
+
+
+def test_render_region_is_blenders_truncated_border_from_the_top():
+    render = SimpleNamespace(use_border=True, border_min_x=0.3, border_max_x=0.8, border_min_y=0.15,
+                             border_max_y=0.6)
+    # x: 12..32 of 40; y from the bottom: 4..18 of 30, so rows 12..25 from the top.
+    assert render_region(render, 40, 30) == (12, 12, 20, 14)
+    assert render_region(SimpleNamespace(use_border=False), 40, 30) is None
+    whole = SimpleNamespace(use_border=True, border_min_x=0.0, border_max_x=1.0, border_min_y=0.0,
+                            border_max_y=1.0)
+    assert render_region(whole, 40, 30) is None
+
+
+def test_alpha_is_flipped_into_the_fourth_channel():
+    buffer = ResultBuffer(2, 2)
+    image = np.zeros((2, 2, 3), np.float32)
+    buffer.fill(image)
+    assert (buffer.rgba[..., 3] == 1.0).all()
+    buffer.fill(image, np.array([[0.25, 0.5], [0.75, 1.0]], np.float32))
+    assert buffer.rgba[..., 3].tolist() == [[0.75, 1.0], [0.25, 0.5]]  # Blender's rows go up
+
+
+def test_aperture_radius_follows_cycles_sync():
+    dof = SimpleNamespace(use_dof=True, aperture_fstop=2.0)
+    lens = SimpleNamespace(dof=dof, lens=50.0)
+    assert aperture_radius(lens, "perspective") == pytest.approx(0.05 / 4.0)
+    assert aperture_radius(lens, "orthographic") == pytest.approx(0.25)
+    pinhole = SimpleNamespace(dof=SimpleNamespace(use_dof=False), lens=50.0)
+    assert aperture_radius(pinhole, "perspective") == 0.0
+
+
+def test_unsupported_panorama_types_are_errors():
+    assert projection_of(SimpleNamespace(type="PANO", panorama_type="MIRRORBALL"), "c") == "mirrorball"
+    with pytest.raises(ExportError, match="equiangular cubemap face"):
+        projection_of(SimpleNamespace(type="PANO", panorama_type="EQUIANGULAR_CUBEMAP_FACE"), "c")

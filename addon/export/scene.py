@@ -15,7 +15,7 @@ import numpy as np
 
 from renderer.scene import Film, IntegratorSettings, Scene
 
-from .camera import export_camera, film_size
+from .camera import export_camera, film_size, render_region
 from .lights import area_light, point_light, spot_light, sun_light
 from .materials import MaterialLibrary
 from .mesh import LocalGeometry, MeshPart, build_meshes, read_geometry, transform
@@ -156,6 +156,8 @@ def export_scene(depsgraph, film: Film | None = None, render_depsgraph: bool = T
     messages = Messages()
     scene = depsgraph.scene_eval
     film = film or Film(*film_size(scene.render))
+    film.region = render_region(scene.render, film.width, film.height)
+    film.transparent = bool(scene.render.film_transparent)
     camera_object = scene.camera.evaluated_get(depsgraph) if scene.camera is not None else None
     camera = export_camera(camera_object, film, scene.render, scene.name, messages)
     library = MaterialLibrary(messages)

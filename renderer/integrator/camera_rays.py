@@ -3,34 +3,39 @@ the camera sits in.
 
 Sample indices are linear over a pass, so a batch may hold the tail of one sample of every
 pixel and the head of the next: index k is pixel k % (width * height), sample
-sample_base + k // (width * height).
+sample_base + k // (width * height), where width x height is the rendered window (the
+whole frame without a Render Region). A path's random key is that of its pixel in the full
+frame, so a window renders the same pixels as the whole frame does.
 """
 
-from ..camera import camera_ray
+from ..camera import RASTER_WIDTH, RASTER_X0, RASTER_Y0, camera_ray
 from ..kernels import kernel
 from ..kernels.rng import path_key, uniform
 from ..kernels.vecmath import madd
-from .dims import CAMERA_DIMS
-from .paths import PATH_ACTIVE, store3
+from .dims import CAMERA_DIMS, LENS_DIM
+from .paths import PATH_ACTIVE, PATH_DEAD, store3
 
 
 @kernel
 def start_paths(ps, pixel_of_pid, cam, width, height, seed, first, n, sample_base, init_stack):
     """Camera rays for linear sample indices first .. first + n - 1 of a pass, into rows
     0..n-1 (row i owns radiance slot i)."""
-    to_world_m, tan_half, shift, clip = cam
+    raster = cam.raster
     npix = width * height
     for i in range(n):
         k = first + i
         pixel = k % npix
         sample = sample_base + k // npix
-        key = path_key(seed, pixel, sample)
-        o, d = camera_ray(to_world_m, tan_half, shift, pixel % width, pixel // width, width, height,
-                          uniform(key, 0), uniform(key, 1))
+        # The pixel's place in the full frame.
+        px = int(raster[RASTER_X0]) + pixel % width
+        py = int(raster[RASTER_Y0]) + pixel // width
+        key = path_key(seed, py * int(raster[RASTER_WIDTH]) + px, sample)
+        o, d, near, length, ok = camera_ray(cam, px, py, uniform(key, 0), uniform(key, 1),
+                                            uniform(key, LENS_DIM), uniform(key, LENS_DIM + 1))
         # Rays start at the near clip distance and end at the far one.
-        store3(ps.o, i, madd(o, d, clip[0]))
+        store3(ps.o, i, madd(o, d, near))
         store3(ps.d, i, d)
-        ps.tmax[i] = clip[1] - clip[0]
+        ps.tmax[i] = length
         ps.gap[i] = 0.0
         store3(ps.beta, i, (1.0, 1.0, 1.0))
         ps.pid[i] = i
@@ -42,5 +47,6 @@ def start_paths(ps, pixel_of_pid, cam, width, height, seed, first, n, sample_bas
         store3(ps.mis_o, i, o)
         for j in range(init_stack.shape[0]):
             ps.stack[i, j] = init_stack[j]
-        ps.alive[i] = PATH_ACTIVE
+        # No ray (outside a fisheye's circle): a black sample, as in Cycles.
+        ps.alive[i] = PATH_ACTIVE if ok else PATH_DEAD
         pixel_of_pid[i] = pixel

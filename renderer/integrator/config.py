@@ -26,6 +26,7 @@ CONFIG = Layout("integrator config", [
     ("has_media", 1),
     ("walk_shadows", 1),  # shadow rays may pass interfaces (walk_shadows, not one occlusion test)
     ("nee_batch", 1),  # homogeneous next-event vertices in SIMD batches (nee_batch); 0 = scalar
+    ("film_transparent", 1),  # Film > Transparent: the world seen directly gives alpha 0
 ])
 CFG_MAX_BOUNCES = CONFIG.offset("max_bounces")
 CFG_RR_DEPTH = CONFIG.offset("rr_depth")
@@ -36,6 +37,7 @@ CFG_EQUIANGULAR = CONFIG.offset("equiangular")
 CFG_HAS_MEDIA = CONFIG.offset("has_media")
 CFG_WALK_SHADOWS = CONFIG.offset("walk_shadows")
 CFG_NEE_BATCH = CONFIG.offset("nee_batch")
+CFG_FILM_TRANSPARENT = CONFIG.offset("film_transparent")
 CFG_SIZE = CONFIG.size
 
 # How direct light is estimated: both techniques weighted by MIS, light sampling only, or
@@ -55,4 +57,5 @@ def make_config(cs: CompiledScene, settings: IntegratorSettings) -> np.ndarray:
     cfg[CFG_HAS_MEDIA] = cs.has_media
     cfg[CFG_WALK_SHADOWS] = cs.needs_shadow_walk
     cfg[CFG_NEE_BATCH] = 1
+    cfg[CFG_FILM_TRANSPARENT] = cs.transparent
     return cfg

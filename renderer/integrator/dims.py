@@ -5,7 +5,8 @@ or not it uses all of it, so that the scalar kernels and the SIMD batches (nee_b
 do the same work in a different order, draw the same random numbers.
 """
 
-CAMERA_DIMS = 2  # the sample's position in its pixel; the path's own events start after them
+CAMERA_DIMS = 4  # the sample's position in its pixel, then on the lens; the path's own events follow
+LENS_DIM = 2  # the two of the point on the lens (spent by every camera, used by thin lenses)
 SHADOW_DIMS = 64  # a shadow ray's own tracking through media
 MEDIUM_NEE_DIMS = 2 + SHADOW_DIMS  # a medium vertex's light connection and its shadow ray
 

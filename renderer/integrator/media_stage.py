@@ -18,7 +18,8 @@ import numpy as np
 from ..kernels import inline_kernel, kernel
 from ..kernels.rng import uniform
 from ..kernels.vecmath import add, madd, max3, mul, scale
-from ..lights.sample import connect_light, light_cdf, light_has_point, light_pmf, light_point, pick_light
+from ..lights.sample import connect_light, light_has_point, light_pmf, light_point, pick_light
+from ..lights.table import LT_CDF
 from . import nee_batch
 from .config import (
     CFG_EQUIANGULAR,
@@ -145,7 +146,7 @@ def shade_media(n, ps, prim, lt, md, cfg, L, sh, nb, grid_md):
     # int64, not the literal 0: numba compiles a callee once per argument type it meets while
     # typing, so a literal would compile _flush_nee_batch (and the SIMD batch) twice over.
     s = np.int64(0)
-    cdf = light_cdf(lt)
+    cdf = lt[LT_CDF]  # what pick_light searches: L + 1 entries
     batched = cfg[CFG_NEE_BATCH] != 0
     queued = np.int64(0)
     for i in range(n):

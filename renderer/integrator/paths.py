@@ -21,6 +21,11 @@ PATH_ACTIVE = 1
 PATH_SCATTERED = 2
 
 RAY_FAR = 1e30  # "no hit" length of a ray, and the distance of lights at infinity
+# The batch's radiance array L is (N, 4): RGB, then the path's transparency (Film >
+# Transparent: the throughput with which it reached the world directly), which splat
+# turns into alpha = 1 - transparency.
+ALPHA = 3
+L_COLUMNS = 4
 
 
 @inline_kernel

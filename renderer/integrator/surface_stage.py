@@ -27,17 +27,25 @@ from ..kernels.vecmath import add, dot, madd, max3, mul, neg, normalize, onb, sc
 from ..lights.sample import (
     connect_light,
     escaped_radiance,
-    light_cdf,
     light_pmf,
     light_point,
     pick_light,
     triangle_emission,
     triangle_light_pdf,
 )
-from .config import CFG_MAX_BOUNCES, CFG_RR_DEPTH, CFG_SAMPLING, SAMPLING_BSDF, SAMPLING_NEE
+from ..lights.table import LT_CDF
+from .config import (
+    CFG_FILM_TRANSPARENT,
+    CFG_MAX_BOUNCES,
+    CFG_RR_DEPTH,
+    CFG_SAMPLING,
+    SAMPLING_BSDF,
+    SAMPLING_NEE,
+)
 from .dims import SHADOW_DIMS
 from .media_api import stack_push, stack_remove
 from .paths import (
+    ALPHA,
     PATH_ACTIVE,
     PATH_DEAD,
     RAY_FAR,
@@ -62,7 +70,8 @@ def shade_surface(n, ps, prim, bu, bv, geo, mt, lt, env_light, sun_rows, cfg, L,
     index s. Returns the number of shadow rays written in all."""
     max_bounces = cfg[CFG_MAX_BOUNCES]
     sampling = cfg[CFG_SAMPLING]
-    cdf = light_cdf(lt)
+    transparent = cfg[CFG_FILM_TRANSPARENT] != 0
+    cdf = lt[LT_CDF]  # what pick_light searches: L + 1 entries
     for i in range(n):
         if ps.alive[i] != PATH_ACTIVE:
             continue
@@ -77,7 +86,15 @@ def shade_surface(n, ps, prim, bu, bv, geo, mt, lt, env_light, sun_rows, cfg, L,
 
         # --- escaped: environment and sun discs ------------------------------------------
         if p < 0:
-            le, pdf_light = escaped_radiance(lt, env_light, sun_rows, d)
+            env = env_light
+            if depth == 0 and transparent:
+                # Cycles' transparent background: a camera ray that reaches the world having
+                # only passed through (interfaces, transparent lobes, media unscattered)
+                # leaves the world out and counts its mean throughput as transparency
+                # (alpha = 1 - transparency); sun discs stay visible, as Cycles' distant lights.
+                L[pid, ALPHA] += (beta[0] + beta[1] + beta[2]) / 3.0
+                env = -1
+            le, pdf_light = escaped_radiance(lt, env, sun_rows, d)
             if max3(le) > 0.0:
                 add_weighted_radiance(L, pid, beta, le, hit_weight(ps.mis_pdf[i], pdf_light, sampling))
             ps.alive[i] = PATH_DEAD
@@ -157,7 +174,7 @@ def _surface_nee(lt, mt, m, front, x, ng, wo, ts, tt, sn, beta, sampling, pid, k
     """Next-event estimation at surface point x: pick a light and a point on it, weigh the
     connection by the BSDF and MIS, and write its shadow ray at index s when it carries
     light. Returns (next shadow index, next dimension)."""
-    cdf = light_cdf(lt)
+    cdf = lt[LT_CDF]  # what pick_light searches: L + 1 entries
     light = pick_light(cdf, uniform(key, dim))
     lp = light_point(lt, light, uniform(key, dim + 1), uniform(key, dim + 2))
     wi, dist, le, pdf, is_delta = connect_light(lt, light, lp, x, uniform(key, dim + 3),

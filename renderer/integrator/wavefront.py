@@ -17,6 +17,7 @@ from ..scene import IntegratorSettings
 from . import stages as K
 from .config import make_config
 from .nee_batch import NeeBatch
+from .paths import L_COLUMNS
 from .state import allocate_paths, allocate_shadows
 
 
@@ -73,7 +74,7 @@ class Tracer:
         # The same again where the kernels may meet grid media, None when the scene has none:
         # then they compile without the grid trackers (numba prunes branches on None).
         self.grid_md = self.md if cs.media.has_grids else None
-        self.L = np.zeros((self.batch, 3), np.float64)
+        self.L = np.zeros((self.batch, L_COLUMNS), np.float64)  # RGB and transparency
         self.pixel_of_pid = np.zeros(self.batch, np.int32)
         self.remaining = np.zeros(2 * self.batch, np.float32)
         self.cfg = make_config(cs, settings)
@@ -95,7 +96,7 @@ class Tracer:
                                cs.lights.sun_rows, cfg, L, sh, 0)),
             (K.compact_paths, (1, ps)),
             (K.splat, (1, L, self.pixel_of_pid, np.zeros((1, 3), np.float64), np.zeros((1, 3), np.float64),
-                       np.zeros(1, np.int64), np.zeros(1, np.int64))),
+                       np.zeros(1, np.int64), np.zeros(1, np.int64), np.zeros(1, np.float64))),
         ]
         if cs.has_media:
             calls.append((K.shade_media, (1, ps, prim, lt, self.md, cfg, L, sh, self.nb, self.grid_md)))
@@ -135,7 +136,7 @@ class Tracer:
             if count:
                 self._shadows(count)
             live = K.compact_paths(live, ps)
-        K.splat(n, self.L, self.pixel_of_pid, film.sum, film.sq, film.n, film.nonfinite)
+        K.splat(n, self.L, self.pixel_of_pid, film.sum, film.sq, film.n, film.nonfinite, film.alpha)
 
     def _shadows(self, count: int) -> None:
         sh = self.sh

@@ -5,6 +5,7 @@ arrays crossing the Python boundary are contiguous float32/int32 structure-of-ar
 """
 
 from numba import njit
+from numba.core.registry import CPUDispatcher
 
 from . import cache
 
@@ -17,23 +18,55 @@ cache.install()
 # formulas keep their meaning). Measured: "contract" made the fog box 3-6% faster.
 JIT_OPTIONS = {"cache": True, "error_model": "numpy", "fastmath": {"contract"}, "_nrt": False}
 #
-# Which decorator (the cold compile, issue 19). `inline_kernel` inlines at numba IR level: at
-# every call site numba translates, re-types and SSA-converts a fresh copy of the callee and
-# of everything it inlines in turn, so a big callee reached from several places costs its
-# whole compile again at each. A `kernel` is compiled once per signature and cached, and
-# LLVM may still inline it where it links the callee's module into the caller. So the large
-# helpers of the scalar medium path are plain kernels (the phase sampling and evaluation of
-# a stack, sample_distance, sample_segment, nee_vertex_on, and shade_media's connect_light),
-# and a scene without grids passes grid_md = None so that no grid tracker is compiled.
-# Measured (tools/compile_profile.py fog, cold cache, two builds at once, one core each):
-# 415 s -> 148 s to the first pass, shade_media 240 -> 21 s of its own. Still inlined:
-# the small vector, random-number and table helpers; whatever takes the path or shadow
-# tables (ps, sh: a call passes every array's fields, and _medium_nee as a call cost 50 ns,
-# commit 9706474); everything the SIMD batch loops call (LLVM must see it all to
-# vectorise); and the surface stage's light and BSDF calls, which are hot (as kernels they
-# cut the surface stage's compile 3x but cost about 15% of the surface box's speed).
+# Which decorator (the cold compile, issue 19). Both compile a function once per argument
+# types, in numba, and cache it; they differ in what LLVM does at a call site.
+# `inline_kernel` marks the function alwaysinline for LLVM (numba's `forceinline`): every
+# caller gets the callee's optimised LLVM body, so the hot helpers cost no call and LLVM sees
+# whole loops to vectorise. It replaced numba's own `inline="always"`, which re-translated,
+# re-typed and SSA-converted a fresh copy of the callee's Python at every call site (and of
+# everything inlined into it in turn): shade_surface spent 85 of its 118 s of compile there.
+# Measured (fog box, cold cache, CPU seconds to the first pass, machine loaded): 180 s -> 77 s;
+# samples/s unchanged within this VM's noise; tools/golden_images.py bit-identical (41 of 41).
+# A function that returns an array cannot be a separate function without numba's reference
+# counting (off here), so such one-liners are written out where they are used.
+# `kernel` leaves inlining to LLVM's cost model: for large helpers off the hot path (the
+# medium's phase sampling, sample_distance, sample_segment, nee_vertex_on, shade_media's
+# connect_light), which then compile and optimise once instead of once per call site. A
+# scene without grids passes grid_md = None so that no grid tracker is compiled.
 # A kernel also compiles once per argument type it meets while its caller is typed, literal
 # constants included (Literal[int](0) and int64 are two compiles): pass int64 or bool
 # variables to a kernel, not literals.
 kernel = njit(**JIT_OPTIONS)
-inline_kernel = njit(**JIT_OPTIONS, inline="always")  # inlined into its callers at numba IR level
+
+
+class InlineDispatcher(CPUDispatcher):
+    """A helper without the wrappers through which Python calls a numba function.
+
+    Numba builds a CPython wrapper (unboxing every argument, boxing the result) and a C
+    wrapper for every function it compiles. A helper only ever runs inlined into kernels, so
+    its wrappers were pure compile time: about a third of the fog box's cold compile. Without
+    them a direct call from Python would crash the process, so such calls (tests, tools) go
+    through a small jitted entry compiled on first use instead.
+    """
+
+    def __call__(self, *args):
+        entry = self.__dict__.get("_python_entry")
+        if entry is None:
+            entry = self.__dict__["_python_entry"] = _python_entry(self)
+        return entry(*args)
+
+
+def _python_entry(helper: InlineDispatcher):
+    def call(*args):
+        return helper(*args)
+
+    return njit(**{**JIT_OPTIONS, "cache": False})(call)  # a closure: nothing for the cache to key on
+
+
+def inline_kernel(func):
+    """Compiled once per argument types, inlined by LLVM at every call (see above)."""
+    options = {k: v for k, v in JIT_OPTIONS.items() if k != "cache"}
+    options.update(nopython=True, forceinline=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)
+    helper = InlineDispatcher(py_func=func, locals={}, targetoptions=options)
+    helper.enable_caching()
+    return helper

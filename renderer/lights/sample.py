@@ -30,7 +30,6 @@ from .spherical_triangle import (
     use_solid_angle,
 )
 from .table import (
-    LT_CDF,
     LT_COLOR,
     LT_COLOR_B,
     LT_KIND,
@@ -46,12 +45,6 @@ from .table import (
 )
 
 SOLID_ANGLE_GATE = 0.05  # sr; see looks_near
-
-
-@inline_kernel
-def light_cdf(lt):
-    """The cdf pick_light searches: L + 1 entries, so more than one when there are lights."""
-    return lt[LT_CDF]
 
 
 @inline_kernel
