@@ -16,7 +16,10 @@ The worker processes (renderer.workers) persist across renders in this process a
 each scene once. The parent watches the clock: a worker still inside a unit when the time
 limit passes (one numba kernel call cannot be interrupted, and a pathological scene may
 stay in one for hours), or half a second after the render is cancelled, is terminated,
-and the next render starts a new one. A worker that dies costs only its unit, which another traces again.
+and the next render starts a new one. A worker that dies costs only its unit, which
+another traces again. One worker without a time limit traces in this process by default
+(see render_progressive's in_process): it starts fastest, but cannot be stopped inside a
+kernel; the command line always uses the pool.
 """
 
 from __future__ import annotations
