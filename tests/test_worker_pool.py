@@ -116,7 +116,8 @@ def test_a_worker_builds_its_tracer_once_per_scene(tmp_path):
     replies = []
     while parent.poll():
         replies.append(parent.recv())
-    assert [r[0] for r in replies] == ["ready", "done", "done", "ready", "done"]
+    # ("compile" first when the kernels are not cached yet: that depends on earlier tests.)
+    assert [r[0] for r in replies if r[0] != "compile"] == ["ready", "done", "done", "ready", "done"]
     assert all((r[2].n == 1).all() for r in replies if r[0] == "done")
 
 
