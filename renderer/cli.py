@@ -192,8 +192,9 @@ def render_command(args) -> int:
         print(f"error: {problem}", file=sys.stderr)
         return 2
     check_render_memory(scene.film, args.workers)
-    # Before numba loads here: the workers' start overlaps this process's imports.
-    start_workers(args.workers)
+    # Before numba loads here: the first worker's start overlaps this process's imports (the
+    # others start once it is heard from: renderer.render._PoolRender._pool_size).
+    start_workers(1)
     return _render_and_write(args, scene)
 
 

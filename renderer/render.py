@@ -255,6 +255,7 @@ class _PoolRender:
         self.retry: list[Unit] = []  # a heap: units whose worker died, before any fresh one
         self.target_error = target_error
         self.workers = workers
+        self.heard_from_a_worker = False  # see _pool_size
         self.on_compile = on_compile or announce_compile
         self.announced = False
         self.merger = _UnitMerger(film)
@@ -282,8 +283,17 @@ class _PoolRender:
             finally:
                 self.pool.terminate_busy()  # a cancelled render leaves no unit in flight
 
+    def _pool_size(self) -> int:
+        """Workers wanted now. A pool that must start processes starts one, and the others
+        once it has said "ready" or "compile": processes starting together share two cores
+        with this one's imports, so the first of several was ready about a second later than
+        a lone one (warm cache); a compile still starts them all at once, to share it."""
+        if self.heard_from_a_worker or len(self.pool.workers) >= self.workers:
+            return self.workers
+        return max(1, len(self.pool.workers))
+
     def _run(self, shipment: Shipment) -> Iterator[Progress]:
-        self.pool.resize(self.workers)
+        self.pool.resize(self._pool_size())
         while True:
             if self._stopping():
                 self.stop_at = min(self.stop_at, time.perf_counter() + STOP_GRACE)
@@ -312,7 +322,7 @@ class _PoolRender:
         return bool(self.note) or self.target_met or self.clock.left() <= 0
 
     def _hand_out(self, shipment: Shipment) -> None:
-        self.pool.resize(self.workers)  # replaces idle workers that died since (killed, out of memory)
+        self.pool.resize(self._pool_size())  # also replaces idle workers that died (killed, out of memory)
         for worker in self.pool.idle():
             unit = heapq.heappop(self.retry) if self.retry else next(self.fresh, None)
             if unit is None:
@@ -328,7 +338,9 @@ class _PoolRender:
         for worker, message in events:
             if message is None:
                 self._lost(worker)
-            elif message[0] == "compile":
+                continue
+            self.heard_from_a_worker = True
+            if message[0] == "compile":
                 self._compiling(worker, True, message[1])
             elif message[0] == "ready":
                 self._compiling(worker, False)
