@@ -188,13 +188,18 @@ class RenderSession:
         # The passes cost nothing unless asked for: only then does the renderer write them.
         exported.scene.film.aovs = needs_aovs(self.passes, self.denoise)
         self.camera = exported.scene.camera
+        # Always the worker pool, one worker included: Esc and the time limit can only stop a
+        # numba kernel in another process (the pool's workers persist across renders).
         frames = render_progressive(exported.scene, workers=self._workers(),
                                     target_error=float(self.settings.target_error), validate=False,
-                                    on_compile=self._on_compile)
+                                    on_compile=self._on_compile, in_process=False)
         try:
             self._consume(frames, result)
         finally:
-            frames.close()  # stops the renderer's workers, also on cancel or error
+            frames.close()  # stops the work in flight, also on cancel or error
+        note = getattr(self.latest, "note", "")
+        if note:
+            self.engine.report({"WARNING"}, f"Haze: {note}")
 
     def _on_compile(self, names: list[str]) -> None:
         """The kernels are not in the cache: say why the first image takes minutes."""

@@ -183,6 +183,7 @@ class CompileTicker:
 def render_command(args) -> int:
     from .scenefile import load_scene_and_inputs
     from .validate import check_render_memory
+    from .workers import start_workers
 
     problem = _check(args)
     if problem:
@@ -201,6 +202,9 @@ def render_command(args) -> int:
         print(f"error: {problem}", file=sys.stderr)
         return 2
     check_render_memory(scene.film, args.workers)
+    # Before numba loads here: the first worker's start overlaps this process's imports (the
+    # others start once it is heard from: renderer.render._PoolRender._pool_size).
+    start_workers(1)
     return _render_and_write(args, scene)
 
 
@@ -224,7 +228,7 @@ def _render_and_write(args, scene) -> int:
     ticker = CompileTicker()
     try:
         for last in render_progressive(scene, workers=args.workers, target_error=args.target_error,
-                                       on_compile=ticker.start):
+                                       on_compile=ticker.start, in_process=False):
             ticker.stop()
             line = _bar(last.spp, s.spp, last.elapsed, last.error_estimate)
             print(line, end="", file=sys.stderr, flush=True)
@@ -247,6 +251,8 @@ def _render_and_write(args, scene) -> int:
     seconds = time.perf_counter() - t0
     samples = last.spp * last.film.width * last.film.height  # the rendered window's pixels
     print(msg, file=sys.stderr)
+    if last.note:
+        print(f"warning: {last.note}", file=sys.stderr)
     if last.film.nonfinite[0]:
         bad = int(last.film.nonfinite[0])
         print(f"warning: {bad} path values were NaN or infinite and were counted as 0", file=sys.stderr)

@@ -1,24 +1,37 @@
-"""Progressive rendering: a generator of passes over disjoint sample ranges.
+"""Progressive rendering: fixed units of work, traced anywhere, merged in unit order.
 
-Each pass adds a chunk of samples per pixel to the film; the caller sees the image after
-every pass and may stop at any time (closing the generator stops the workers). Because a
-path's random numbers depend only on (seed, pixel, sample index), chunks can be traced in
-any process and merged: the image does not depend on the number of workers or the batch
-size (up to the order of floating-point sums).
+A path's random numbers depend only on (seed, pixel, sample index), so a render is cut
+into units, each a range of sample indices for every pixel (`plan_units`). Their sizes
+depend only on the image size and the sample count, never on timing, and the film adds
+them in unit order, so the image is bit-identical whatever the number of workers and equal
+to the single-process render of the same seed. A unit that finishes before its
+predecessors waits in a small buffer. The caller sees the image after merges (the first at
+once, then at most every YIELD_INTERVAL) and may stop at any time. A render that stops
+early (time limit, target error, or a KeyboardInterrupt while it waits) merges every
+finished unit before it returns, so no finished sample is lost (closing the generator
+keeps what was yielded), and the film counts exactly the samples it holds.
 
 Embree holds Python's lock while it traces, so the second core needs a second process.
+The worker processes (renderer.workers) persist across renders in this process and get
+each scene once. The parent watches the clock: a worker still inside a unit when the time
+limit passes (one numba kernel call cannot be interrupted, and a pathological scene may
+stay in one for hours), or half a second after the render is cancelled, is terminated,
+and the next render starts a new one. A worker that dies costs only its unit, which
+another traces again. One worker without a time limit traces in this process by default
+(see render_progressive's in_process): it starts fastest, but cannot be stopped inside a
+kernel; the command line always uses the pool.
 """
 
 from __future__ import annotations
 
+import heapq
 import math
-import multiprocessing
 import os
 import sys
 import time
 from collections.abc import Callable, Iterator
-from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -26,8 +39,36 @@ from .compile import CompiledScene, compile_scene
 from .film import Film
 from .integrator.wavefront import Tracer
 from .scene import IntegratorSettings, Scene
+from .workers import (
+    Shipment,
+    Worker,
+    borrowed_pool,
+    pool,
+    shipped,
+    shutdown_workers,
+    start_workers,
+    worker_pids,
+)
 
-PASS_SECONDS = 0.5  # aim for a pass about this long: responsive progress, small overhead
+__all__ = ["Progress", "Unit", "default_workers", "iter_units", "plan_units", "render", "render_progressive",
+           "shutdown_workers", "start_workers", "worker_pids"]
+
+# Unit size rule: about UNIT_PATHS path samples per unit, i.e. max(1, UNIT_PATHS // pixels)
+# samples per pixel: 0.1-0.2 s on one core for the Cornell box with or without fog (0.9-1.2
+# M samples/s per core, README), up to about 1 s for dense grids (3.6-8.7 us per sample).
+# Small enough that a time limit wastes little and a killed worker loses little; large
+# enough that shipping a unit's film back (24 bytes per pixel and channel) stays small.
+# The first units are smaller (1, 1, 2, 4, ... spp up to that size), so that the first
+# image comes quickly and both of two workers start at once. One sample per pixel is the
+# least: a unit spans the whole image (tiles would need the tracer to take a pixel range).
+UNIT_PATHS = 1 << 17
+# Progress is yielded at most this often (and always for the first and the last merge):
+# the image and its error estimate cost about a tenth of a unit's tracing at 256x256.
+YIELD_INTERVAL = 0.5
+# After a stop (time limit, target error), units in flight get this long to finish before
+# their workers are terminated: long enough for a normal unit, short enough for "about a second".
+STOP_GRACE = 0.5
+MAX_ATTEMPTS = 3  # a unit whose worker died this many times is given up (the render stops)
 
 
 @dataclass
@@ -38,6 +79,31 @@ class Progress:
     elapsed: float  # seconds since the render started (scene compile included)
     error_estimate: float  # estimated relMSE of `image` (nan before 2 spp)
     film: Film
+    note: str = ""  # what went wrong, when the render stopped short for another reason than asked
+
+
+class Unit(NamedTuple):
+    index: int  # merge order
+    first_sample: int
+    samples: int  # samples per pixel in this unit
+
+
+def iter_units(width: int, height: int, spp: int) -> Iterator[Unit]:
+    """The render's units in order (see UNIT_PATHS): a function of the image size and spp
+    only. A generator, since a benchmark's "render until stopped" asks for 2^20 spp."""
+    full = max(1, UNIT_PATHS // max(1, width * height))
+    index, start, size = 0, 0, 1
+    while start < spp:
+        count = min(size, full, spp - start)
+        yield Unit(index, start, count)
+        index += 1
+        start += count
+        if index >= 2:  # 1, 1, 2, 4, ...: two small units first, one per worker of two
+            size *= 2
+
+
+def plan_units(width: int, height: int, spp: int) -> list[Unit]:
+    return list(iter_units(width, height, spp))
 
 
 def _validate(scene: Scene) -> None:
@@ -46,98 +112,112 @@ def _validate(scene: Scene) -> None:
     validate_scene(scene)
 
 
-class _Chunker:
-    """Sizes passes from the measured time per sample so each lasts about PASS_SECONDS."""
-
-    def __init__(self, target: int, workers: int = 1):
-        self.target = target
-        self.workers = workers
-        self.next = 0  # first sample index not yet handed out
-        self.seconds_per_spp = math.nan
-
-    def take(self, time_left: float) -> tuple[int, int] | None:
-        if self.next >= self.target:
-            return None
-        if math.isnan(self.seconds_per_spp):
-            k = 1
-        else:
-            budget = min(PASS_SECONDS, time_left) if time_left > 0 else PASS_SECONDS
-            k = max(1, int(budget / max(self.seconds_per_spp, 1e-9)))
-        remaining = self.target - self.next
-        # Near the end, split what is left evenly so no worker idles while another finishes.
-        k = min(k, max(1, -(-remaining // self.workers)))
-        start = self.next
-        self.next += k
-        return start, k
-
-    def measured(self, spp: int, seconds: float) -> None:
-        if spp > 0:
-            s = seconds / spp
-            self.seconds_per_spp = s if math.isnan(self.seconds_per_spp) else 0.5 * (self.seconds_per_spp + s)
-
-
 def render_progressive(scene: Scene, workers: int = 1, target_error: float = 0.0,
-                       validate: bool = True, on_compile: Callable[[list[str]], None] | None = None
-                       ) -> Iterator[Progress]:
-    """Render `scene`, yielding after every pass. Stops at scene.integrator.spp samples,
-    at scene.integrator.time_limit seconds (if > 0) or once the estimated relMSE falls
-    below target_error (if > 0). on_compile(kernel names) is called when this process must
-    compile the scene's kernels first (worker processes announce it on stderr instead)."""
+                       validate: bool = True, on_compile: Callable[[list[str]], None] | None = None,
+                       in_process: bool | None = None) -> Iterator[Progress]:
+    """Render `scene`, yielding the image as units are merged (see YIELD_INTERVAL). Stops
+    at scene.integrator.spp samples, at scene.integrator.time_limit seconds (if > 0) or
+    once the estimated relMSE falls below target_error (if > 0). on_compile(kernel names)
+    is called (in this process, while the generator runs) when kernels must be compiled.
+
+    in_process: trace in this process (True) or in the worker pool (False). By default
+    (None) one worker without a time limit runs in this process, which starts fastest and
+    lets tests observe the kernels; but a numba kernel cannot be interrupted there, so
+    neither Ctrl-C nor a time limit can stop a pathological scene. The pool enforces both."""
     t0 = time.perf_counter()
     if validate:
         _validate(scene)
     cs = compile_scene(scene)
     settings = scene.integrator
     film = Film(cs.width, cs.height)
-    chunker = _Chunker(settings.spp, max(1, workers))
-    if workers <= 1:
-        yield from _render_here(cs, settings, film, chunker, t0, target_error, on_compile)
+    units = iter_units(cs.width, cs.height, settings.spp)
+    if in_process is None:
+        in_process = workers <= 1 and settings.time_limit <= 0
+    if in_process:
+        yield from _render_here(cs, settings, film, units, t0, target_error, on_compile)
     else:
-        yield from _render_in_workers(cs, settings, film, chunker, t0, target_error, workers)
+        run = _PoolRender(cs, settings, film, units, t0, target_error, max(1, workers), on_compile)
+        yield from run.frames()
 
 
-def _should_stop(settings: IntegratorSettings, film: Film, t0: float, target_error: float) -> bool:
-    if settings.time_limit > 0 and time.perf_counter() - t0 >= settings.time_limit:
-        return True
+def _target_reached(film: Film, target_error: float) -> bool:
     if target_error > 0 and film.spp >= 4:
         err = film.rel_mse_estimate()
-        if not math.isnan(err) and err <= target_error:
-            return True
+        return not math.isnan(err) and err <= target_error
     return False
 
 
-def _time_left(settings: IntegratorSettings, t0: float) -> float:
-    return settings.time_limit - (time.perf_counter() - t0) if settings.time_limit > 0 else 0.0
-
-
-def _progress(film: Film, settings: IntegratorSettings, t0: float) -> Progress:
+def _progress(film: Film, settings: IntegratorSettings, t0: float, note: str = "") -> Progress:
     return Progress(film.image(), film.spp, settings.spp, time.perf_counter() - t0, film.rel_mse_estimate(),
-                    film)
+                    film, note)
 
 
-def _render_here(cs, settings, film, chunker, t0, target_error, on_compile) -> Iterator[Progress]:
+def trace_unit(tracer: Tracer, unit: Unit, seed: int) -> Film:
+    """One unit into a film of its own: merged by addition, in unit order, wherever traced."""
+    part = Film(tracer.cs.width, tracer.cs.height)
+    tracer.trace(part, unit.first_sample, unit.samples, seed)
+    return part
+
+
+class _Pacer:
+    """When to show progress: at the first merge, then at most every YIELD_INTERVAL."""
+
+    def __init__(self) -> None:
+        self.last = -math.inf
+        self.pending = False  # merged since the last progress shown
+        self.shown = False  # whether the caller has had an image
+
+    def merged(self) -> bool:
+        """Record a merge; True if progress is due now."""
+        self.pending = True
+        if time.perf_counter() - self.last < YIELD_INTERVAL:
+            return False
+        self.last = time.perf_counter()
+        self.pending = False
+        self.shown = True
+        return True
+
+
+def _render_here(cs: CompiledScene, settings: IntegratorSettings, film: Film, units: Iterator[Unit],
+                 t0: float, target_error: float, on_compile) -> Iterator[Progress]:
     tracer = Tracer(cs, settings, on_compile)
-    while True:
-        chunk = chunker.take(_time_left(settings, t0))
-        if chunk is None:
-            return
-        start, k = chunk
-        t = time.perf_counter()
-        tracer.trace(film, start, k, settings.seed)
-        chunker.measured(k, time.perf_counter() - t)
+    pacer = _Pacer()
+    for unit in units:
+        film.add(trace_unit(tracer, unit, settings.seed))
+        if pacer.merged():
+            yield _progress(film, settings, t0)
+            if _target_reached(film, target_error):  # checked when shown: it reads the whole image
+                return
+        if settings.time_limit > 0 and time.perf_counter() - t0 >= settings.time_limit:
+            break
+    if pacer.pending:
         yield _progress(film, settings, t0)
-        if _should_stop(settings, film, t0, target_error):
-            return
 
 
-# --- worker processes -------------------------------------------------------------------
+class _UnitMerger:
+    """Adds finished units to the film in unit order; later ones wait in a buffer."""
 
-_worker_tracer: Tracer | None = None
+    def __init__(self, film: Film):
+        self.film = film
+        self.next = 0  # index of the next unit to merge
+        self.waiting: dict[int, Film] = {}
 
+    def add(self, index: int, part: Film) -> bool:
+        """Buffer a finished unit; True if the film changed (its predecessors were all in)."""
+        self.waiting[index] = part
+        merged = False
+        while self.next in self.waiting:
+            self.film.add(self.waiting.pop(self.next))
+            self.next += 1
+            merged = True
+        return merged
 
-def _worker_init(cs: CompiledScene, settings: IntegratorSettings) -> None:
-    global _worker_tracer
-    _worker_tracer = Tracer(cs, settings, announce_compile)
+    def merge_the_rest(self) -> bool:
+        """On an early stop: merge every finished unit, in unit order, gaps and all."""
+        merged = bool(self.waiting)
+        for index in sorted(self.waiting):
+            self.film.add(self.waiting.pop(index))
+        return merged
 
 
 def announce_compile(names: list[str]) -> None:
@@ -145,53 +225,159 @@ def announce_compile(names: list[str]) -> None:
     print(f"haze: compiling kernels (first run only): {', '.join(names)}", file=sys.stderr, flush=True)
 
 
-def _worker_trace(start: int, k: int, seed: int):
-    assert _worker_tracer is not None
-    cs = _worker_tracer.cs
-    film = Film(cs.width, cs.height)
-    t = time.perf_counter()
-    _worker_tracer.trace(film, start, k, seed)
-    return film, k, time.perf_counter() - t
+class _Clock:
+    """The time limit, paused while a worker compiles kernels (first run only): a limit of
+    seconds must not stop a render before its first sample, or the compile forever."""
+
+    def __init__(self, settings: IntegratorSettings, t0: float):
+        self.deadline = t0 + settings.time_limit if settings.time_limit > 0 else math.inf
+        self.paused_at: float | None = None
+
+    def pause(self, compiling: bool) -> None:
+        now = time.perf_counter()
+        if compiling and self.paused_at is None:
+            self.paused_at = now
+        elif not compiling and self.paused_at is not None:
+            self.deadline += now - self.paused_at
+            self.paused_at = None
+
+    def left(self) -> float:
+        return math.inf if self.paused_at is not None else self.deadline - time.perf_counter()
 
 
-def _render_in_workers(cs, settings, film, chunker, t0, target_error, workers) -> Iterator[Progress]:
-    ctx = multiprocessing.get_context("spawn")
-    pool = ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_worker_init,
-                               initargs=(cs, settings))
-    pending = set()
-    stopping = False
-    try:
+class _PoolRender:
+    """One render on the persistent pool: hand out units, merge results, enforce the stops."""
+
+    def __init__(self, cs: CompiledScene, settings: IntegratorSettings, film: Film, units: Iterator[Unit],
+                 t0: float, target_error: float, workers: int, on_compile):
+        self.cs, self.settings, self.film, self.t0 = cs, settings, film, t0
+        self.fresh = units
+        self.retry: list[Unit] = []  # a heap: units whose worker died, before any fresh one
+        self.target_error = target_error
+        self.workers = workers
+        self.heard_from_a_worker = False  # see _pool_size
+        self.on_compile = on_compile or announce_compile
+        self.announced = False
+        self.merger = _UnitMerger(film)
+        self.clock = _Clock(settings, t0)
+        self.attempts: dict[int, int] = {}
+        self.stop_at = math.inf  # when units still in flight are given up
+        self.note = ""
+        self.pacer = _Pacer()
+        self.target_met = False
+        self.pool = pool  # the shared workers; frames() borrows them
+
+    def frames(self) -> Iterator[Progress]:
+        with borrowed_pool() as self.pool, shipped(self.cs, self.settings) as shipment:
+            try:
+                yield from self._run(shipment)
+            except KeyboardInterrupt:
+                # Show the finished units before the interrupt goes on to the caller.
+                self.pool.terminate_busy()
+                if self.merger.merge_the_rest() or self.pacer.pending:
+                    yield self._progress()
+                raise
+            except GeneratorExit:  # closed by the caller (Esc in Blender): no more images
+                self.pool.drain(STOP_GRACE)
+                raise
+            finally:
+                self.pool.terminate_busy()  # a cancelled render leaves no unit in flight
+
+    def _pool_size(self) -> int:
+        """Workers wanted now. A pool that must start processes starts one, and the others
+        once it has said "ready" or "compile": processes starting together share two cores
+        with this one's imports, so the first of several was ready about a second later than
+        a lone one (warm cache); a compile still starts them all at once, to share it."""
+        if self.heard_from_a_worker or len(self.pool.workers) >= self.workers:
+            return self.workers
+        return max(1, len(self.pool.workers))
+
+    def _run(self, shipment: Shipment) -> Iterator[Progress]:
+        self.pool.resize(self._pool_size())
         while True:
-            while not stopping and len(pending) < workers:
-                chunk = chunker.take(_time_left(settings, t0) / 1.0)
-                if chunk is None:
-                    break
-                pending.add(pool.submit(_worker_trace, chunk[0], chunk[1], settings.seed))
-            if not pending:
+            if self._stopping():
+                self.stop_at = min(self.stop_at, time.perf_counter() + STOP_GRACE)
+            else:
+                self._hand_out(shipment)
+            if not self.pool.busy():
+                break
+            if time.perf_counter() >= self.stop_at:
+                self._give_up_units_in_flight()
+                break
+            if self._handle(self.pool.events(self._wait_time())) and self.pacer.merged():
+                # Checked when shown: the estimate reads the whole image.
+                self.target_met = _target_reached(self.film, self.target_error)
+                yield self._progress()
+        # The pool is refilled by the next render (lazily: an exiting CLI must not wait for
+        # new processes to start).
+        if self.merger.merge_the_rest() or self.pacer.pending or self.note or not self.pacer.shown:
+            yield self._progress()
+
+    def _give_up_units_in_flight(self) -> None:
+        if self.film.spp == 0 and not self.merger.waiting and not self.note:
+            self.note = "the time limit passed before the first samples were done"
+        self.pool.terminate_busy()
+
+    def _stopping(self) -> bool:
+        return bool(self.note) or self.target_met or self.clock.left() <= 0
+
+    def _hand_out(self, shipment: Shipment) -> None:
+        self.pool.resize(self._pool_size())  # also replaces idle workers that died (killed, out of memory)
+        for worker in self.pool.idle():
+            unit = heapq.heappop(self.retry) if self.retry else next(self.fresh, None)
+            if unit is None:
                 return
-            done, pending = wait(pending, return_when=FIRST_COMPLETED)
-            for fut in done:
-                part, k, seconds = fut.result()
-                film.add(part)
-                chunker.measured(k, seconds)
-            yield _progress(film, settings, t0)
-            if _should_stop(settings, film, t0, target_error):
-                stopping = True
-                if not pending:
-                    return
-    finally:
-        _shutdown(pool)
+            worker.send(shipment, unit, self.settings.seed)
 
+    def _wait_time(self) -> float:
+        return min(self.clock.left(), self.stop_at - time.perf_counter(), 3600.0)
 
-def _shutdown(pool: ProcessPoolExecutor) -> None:
-    """Stop workers at once (a cancelled render must not wait for passes in flight)."""
-    processes = list(getattr(pool, "_processes", {}).values())
-    pool.shutdown(wait=False, cancel_futures=True)
-    for p in processes:
-        if p.is_alive():
-            p.terminate()
-    for p in processes:
-        p.join(timeout=5)
+    def _handle(self, events: list[tuple[Worker, tuple | None]]) -> bool:
+        """Act on the workers' messages; True if the film changed."""
+        merged = False
+        for worker, message in events:
+            if message is None:
+                self._lost(worker)
+                continue
+            self.heard_from_a_worker = True
+            if message[0] == "compile":
+                self._compiling(worker, True, message[1])
+            elif message[0] == "ready":
+                self._compiling(worker, False)
+            elif message[0] == "done":
+                worker.unit = None
+                merged |= self.merger.add(message[1], message[2])
+            elif message[0] == "error":
+                worker.unit = None
+                raise message[2] from RuntimeError(f"in a worker process:\n{message[3]}")
+        return merged
+
+    def _compiling(self, worker: Worker, compiling: bool, names: list[str] | None = None) -> None:
+        worker.compiling = compiling
+        if names and not self.announced:
+            self.announced = True
+            self.on_compile(names)
+        self.clock.pause(any(w.compiling for w in self.pool.workers))
+
+    def _lost(self, worker: Worker) -> None:
+        """A worker died: its unit goes back to the queue and a new process takes its place."""
+        unit = worker.unit
+        code = worker.process.exitcode
+        worker.unit, worker.compiling = None, False
+        self.pool.replace(worker)
+        self.clock.pause(any(w.compiling for w in self.pool.workers))
+        if unit is None:
+            return
+        self.attempts[unit.index] = self.attempts.get(unit.index, 0) + 1
+        if self.attempts[unit.index] >= MAX_ATTEMPTS:
+            self.note = (f"worker processes died {MAX_ATTEMPTS} times tracing samples {unit.first_sample}.."
+                         f"{unit.first_sample + unit.samples - 1} (last exit code {code}); stopped with the"
+                         " samples done")
+            return
+        heapq.heappush(self.retry, unit)
+
+    def _progress(self) -> Progress:
+        return _progress(self.film, self.settings, self.t0, self.note)
 
 
 def render(scene: Scene, workers: int = 1) -> np.ndarray:

@@ -153,7 +153,9 @@ def test_complete_render_reports_progress_and_ends_the_result_once():
     assert "Sample 3/3" in engine.stats[-1] and "Elapsed 00:01.50" in engine.stats[-1]
     image = shown_image(engine)
     assert np.allclose(image[..., :3], pass_image(3)) and np.all(image[..., 3] == 1)
-    assert renderer.closed and set(renderer.kwargs) == {"workers", "target_error", "validate", "on_compile"}
+    assert renderer.closed
+    assert set(renderer.kwargs) == {"workers", "target_error", "validate", "on_compile", "in_process"}
+    assert renderer.kwargs["in_process"] is False  # the pool: Esc can stop any scene
     assert renderer.kwargs["workers"] == 1 and renderer.kwargs["target_error"] == 0.0
     assert not [r for r in engine.reports if r[0] == "ERROR"]
     assert COMPILING_TEXT not in engine.stats  # warm cache: nothing to say

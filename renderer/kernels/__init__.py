@@ -5,9 +5,11 @@ arrays crossing the Python boundary are contiguous float32/int32 structure-of-ar
 """
 
 from numba import njit
+from numba.core import sigutils
 from numba.core.registry import CPUDispatcher
 
 from . import cache
+from .cache import function_lock
 
 # Before any kernel is defined: every kernel goes to the shared, content-keyed cache.
 cache.install()
@@ -36,10 +38,26 @@ JIT_OPTIONS = {"cache": True, "error_model": "numpy", "fastmath": {"contract"}, 
 # A kernel also compiles once per argument type it meets while its caller is typed, literal
 # constants included (Literal[int](0) and int64 are two compiles): pass int64 or bool
 # variables to a kernel, not literals.
-kernel = njit(**JIT_OPTIONS)
 
 
-class InlineDispatcher(CPUDispatcher):
+class Kernel(CPUDispatcher):
+    """A numba function that compiles under its own inter-process lock (cache.function_lock):
+    of two processes needing it on a cold cache, one compiles and saves it, the other waits
+    and loads it."""
+
+    def compile(self, sig):
+        args, _ = sigutils.normalize_signature(sig)
+        if tuple(args) in self.overloads:
+            return super().compile(sig)  # already here: nothing to compile or lock
+        with function_lock(self.lock_name):
+            return super().compile(sig)  # loads from the cache if another process saved it
+
+    @property
+    def lock_name(self) -> str:
+        return f"{self.py_func.__module__}.{self.py_func.__qualname__}"
+
+
+class InlineDispatcher(Kernel):
     """A helper without the wrappers through which Python calls a numba function.
 
     Numba builds a CPython wrapper (unboxing every argument, boxing the result) and a C
@@ -63,10 +81,19 @@ def _python_entry(helper: InlineDispatcher):
     return njit(**{**JIT_OPTIONS, "cache": False})(call)  # a closure: nothing for the cache to key on
 
 
-def inline_kernel(func):
-    """Compiled once per argument types, inlined by LLVM at every call (see above)."""
+def _make(cls: type[Kernel], func, **extra) -> Kernel:
     options = {k: v for k, v in JIT_OPTIONS.items() if k != "cache"}
-    options.update(nopython=True, forceinline=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)
-    helper = InlineDispatcher(py_func=func, locals={}, targetoptions=options)
-    helper.enable_caching()
-    return helper
+    options.update(nopython=True, **extra)
+    dispatcher = cls(py_func=func, locals={}, targetoptions=options)
+    dispatcher.enable_caching()
+    return dispatcher
+
+
+def kernel(func) -> Kernel:
+    """Compiled once per argument types; LLVM inlines it only where its cost model says so."""
+    return _make(Kernel, func)
+
+
+def inline_kernel(func) -> InlineDispatcher:
+    """Compiled once per argument types, inlined by LLVM at every call (see above)."""
+    return _make(InlineDispatcher, func, forceinline=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)

@@ -18,8 +18,11 @@ The root is HAZE_CACHE_DIR if set, else NUMBA_CACHE_DIR if set (the user's or a 
 choice), else the per-user cache folder (~/.cache/haze on Linux, %LOCALAPPDATA%\\haze on
 Windows, ~/Library/Caches/haze on macOS).
 
-compile_lock() serialises compiling between processes: the first process to need a kernel
-compiles it while the others wait, then load it from the cache (see renderer.warmup).
+function_lock(name) serialises compiling one function between processes: the first process
+to need it compiles it (and saves it) while the others wait, then load it from the cache.
+The lock is per function, not per build, so two processes starting on a cold cache compile
+different kernels at once (renderer.kernels.warmup picks the ones nobody holds), and a
+function's index file (all its signatures) is only ever written under its lock.
 """
 
 from __future__ import annotations
@@ -38,7 +41,7 @@ from numba.core.caching import CacheImpl, _CacheLocator
 
 PACKAGE_DIR = Path(__file__).resolve().parents[1]  # the renderer package
 CACHE_ENV = "HAZE_CACHE_DIR"
-LOCK_NAME = "compile.lock"
+LOCK_FOLDER = "locks"
 
 
 def cache_root() -> Path:
@@ -113,29 +116,48 @@ def install() -> None:
         CacheImpl._locator_classes.insert(0, HazeCacheLocator)
 
 
+_held: dict[str, int] = {}  # locks this process holds, with their depth (re-entry is free)
+
+
 @contextmanager
-def compile_lock(poll: float = 0.2) -> Iterator[None]:
-    """Hold this build's compile lock (an OS file lock, released if the process dies)."""
-    folder = kernel_cache_dir()
-    folder.mkdir(parents=True, exist_ok=True)
-    with open(folder / LOCK_NAME, "a+b") as f:
-        _lock(f, poll)
+def function_lock(name: str, blocking: bool = True) -> Iterator[bool]:
+    """Hold the compile lock of function `name` (an OS file lock, released if the process
+    dies). Yields True once held; with blocking=False, False at once if another process
+    holds it. Re-entrant within a process."""
+    if name in _held:
+        _held[name] += 1
         try:
-            yield
+            yield True
         finally:
+            _held[name] -= 1
+        return
+    folder = kernel_cache_dir() / LOCK_FOLDER
+    folder.mkdir(parents=True, exist_ok=True)
+    digest = hashlib.sha1(name.encode()).hexdigest()[:12]  # short, portable file names
+    with open(folder / f"{name[-60:]}-{digest}.lock", "a+b") as f:
+        if not _lock(f, blocking):
+            yield False
+            return
+        _held[name] = 1
+        try:
+            yield True
+        finally:
+            del _held[name]
             _unlock(f)
 
 
 if sys.platform == "win32":
     import msvcrt
 
-    def _lock(f, poll: float) -> None:
+    def _lock(f, blocking: bool, poll: float = 0.1) -> bool:
         while True:
             try:
                 f.seek(0)
                 msvcrt.locking(f.fileno(), msvcrt.LK_NBLCK, 1)
-                return
+                return True
             except OSError:
+                if not blocking:
+                    return False
                 time.sleep(poll)
 
     def _unlock(f) -> None:
@@ -144,8 +166,12 @@ if sys.platform == "win32":
 else:
     import fcntl
 
-    def _lock(f, poll: float) -> None:
-        fcntl.flock(f.fileno(), fcntl.LOCK_EX)
+    def _lock(f, blocking: bool) -> bool:
+        try:
+            fcntl.flock(f.fileno(), fcntl.LOCK_EX if blocking else fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            return False
+        return True
 
     def _unlock(f) -> None:
         fcntl.flock(f.fileno(), fcntl.LOCK_UN)

@@ -5,8 +5,10 @@ that, two worker processes starting on a cold cache both compile everything (min
 about 2 GB each), and nothing can tell the user why the first image is late. Instead, the
 tracer lists the calls it will make (kernel and example arguments of the right types) and
 `warm_up` compiles their signatures up front: if every one is already in the cache it just
-loads them; otherwise it takes the build's compile lock (renderer.kernels.cache), so that
-one process compiles while the others wait and then load what it saved.
+loads them. Otherwise it compiles the cold ones, each under its own inter-process lock
+(renderer.kernels.cache.function_lock): kernels another process is compiling are left for
+last, so two workers on a cold cache compile different kernels at once (one core each),
+and a kernel one has compiled the other waits for and loads.
 """
 
 from __future__ import annotations
@@ -17,7 +19,7 @@ from collections.abc import Callable, Sequence
 from numba.core.dispatcher import Dispatcher
 from numba.core.registry import CPUDispatcher
 
-from .cache import compile_lock
+from .cache import function_lock
 
 KernelCall = tuple[CPUDispatcher, tuple]
 
@@ -53,8 +55,28 @@ def warm_up(calls: Sequence[KernelCall], on_compile: Callable[[list[str]], None]
     if on_compile is not None:
         on_compile(cold)
     t = time.perf_counter()
-    with compile_lock():
-        # Another process may have compiled them while we waited: compile() loads those.
-        for k, sig in sigs:
+    pending = [(k, sig) for k, sig in sigs if not is_ready(k, sig)]
+    while pending:
+        pending = _compile_unclaimed(pending)
+        if pending:  # all claimed by other processes: wait for one, then load it
+            k, sig = pending.pop(0)
             k.compile(sig)
+    for k, sig in sigs:
+        k.compile(sig)  # the cached ones: load
     return time.perf_counter() - t
+
+
+def _compile_unclaimed(pending: list[tuple[CPUDispatcher, tuple]]) -> list[tuple[CPUDispatcher, tuple]]:
+    """Compile every pending kernel no other process holds the lock of; return the rest."""
+    left = []
+    for k, sig in pending:
+        name = getattr(k, "lock_name", None)
+        if name is None:
+            k.compile(sig)
+            continue
+        with function_lock(name, blocking=False) as held:
+            if held:
+                k.compile(sig)
+            else:
+                left.append((k, sig))
+    return left

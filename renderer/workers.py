@@ -1,0 +1,264 @@
+"""The persistent worker processes of renderer.render, and how the scene reaches them.
+
+Spawned processes (Blender cannot fork; spawn everywhere alike) that live across renders
+in this process: a second render or the next animation frame reuses them. The scene is
+pickled once per render to a temporary file named by a hash of its contents; a task
+carries that (key, path), and a worker loads the scene and builds its tracer only for a
+key it has not got (it keeps one tracer). The parent (renderer.render) watches each
+worker's pipe and process sentinel, so it can terminate one stuck inside a kernel and
+notice one that died.
+
+This module imports only the standard library, so a caller can start workers before it
+imports numba (`start_workers`): the workers' imports then overlap its own. A worker
+imports the renderer as soon as it starts, before its first task.
+"""
+
+from __future__ import annotations
+
+import atexit
+import dataclasses
+import hashlib
+import multiprocessing
+import os
+import pickle
+import signal
+import tempfile
+import time
+import traceback
+from collections.abc import Iterator
+from contextlib import contextmanager
+from multiprocessing.connection import Connection
+from multiprocessing.connection import wait as wait_for
+from pathlib import Path
+from typing import TYPE_CHECKING, NamedTuple
+
+if TYPE_CHECKING:
+    from .compile import CompiledScene
+    from .integrator.wavefront import Tracer
+    from .render import Unit
+    from .scene import IntegratorSettings
+
+
+class Shipment(NamedTuple):
+    key: str  # hash of the pickle: a worker that holds this key already has the tracer
+    path: str
+
+
+@contextmanager
+def shipped(cs: CompiledScene, settings: IntegratorSettings) -> Iterator[Shipment]:
+    """The scene pickled once to a temporary file for the workers, removed after the render."""
+    # Fields a tracer does not read are normalised, so another seed, spp or time limit of
+    # the same scene does not make the workers rebuild their tracers.
+    tracer_settings = dataclasses.replace(settings, seed=0, spp=1, time_limit=0.0)
+    data = pickle.dumps((cs, tracer_settings), protocol=pickle.HIGHEST_PROTOCOL)
+    key = hashlib.blake2b(data, digest_size=16).hexdigest()
+    fd, path = tempfile.mkstemp(prefix=f"haze-scene-{key[:8]}-", suffix=".pkl")
+    try:
+        with os.fdopen(fd, "wb") as f:
+            f.write(data)
+        yield Shipment(key, path)
+    finally:
+        Path(path).unlink(missing_ok=True)
+
+
+# --- worker processes -------------------------------------------------------------------
+
+
+def _worker_main(conn: Connection) -> None:
+    """A worker: trace the units it is sent, keeping the tracer of the last scene."""
+    # Ctrl-C reaches the whole process group; the parent decides what stops, and a worker
+    # interrupted mid-unit would only print a traceback.
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    from .render import trace_unit  # the renderer and numba load now, before the first task
+
+    key, tracer = None, None
+    while True:
+        try:
+            task = conn.recv()
+        except (EOFError, OSError):
+            return  # the parent is gone
+        if task is None:
+            return
+        shipment, unit, seed = task
+        try:
+            if shipment.key != key:
+                tracer = None  # free the old scene before loading the new one
+                tracer = _load_tracer(shipment, conn)
+                key = shipment.key
+            conn.send(("done", unit.index, trace_unit(tracer, unit, seed)))
+        except Exception as error:  # reported to the parent, which raises it there
+            conn.send(("error", unit.index, _picklable(error), traceback.format_exc()))
+
+
+def _load_tracer(shipment: Shipment, conn: Connection) -> Tracer:
+    from .integrator.wavefront import Tracer
+
+    with open(shipment.path, "rb") as f:
+        cs, settings = pickle.load(f)
+    tracer = Tracer(cs, settings, lambda names: conn.send(("compile", names)))
+    conn.send(("ready",))
+    return tracer
+
+
+def _picklable(error: Exception) -> Exception:
+    try:
+        pickle.loads(pickle.dumps(error))
+        return error
+    except Exception:
+        return RuntimeError(f"{type(error).__name__}: {error}")
+
+
+class Worker:
+    def __init__(self) -> None:
+        ctx = multiprocessing.get_context("spawn")  # Blender cannot fork; spawn everywhere alike
+        self.conn, child = ctx.Pipe()
+        self.process = ctx.Process(target=_worker_main, args=(child,), daemon=True, name="haze-worker")
+        self.process.start()
+        child.close()
+        self.unit: Unit | None = None  # the unit in flight
+        self.compiling = False
+
+    def send(self, shipment: Shipment, unit: Unit, seed: int) -> None:
+        self.unit = unit
+        try:
+            self.conn.send((shipment, unit, seed))
+        except OSError:
+            pass  # it died: its sentinel says so at the next wait, and the unit is retried
+
+    def alive(self) -> bool:
+        return self.process.is_alive()
+
+    def stop(self, terminate: bool) -> None:
+        """End the process: politely when idle, at once when it may be inside a kernel."""
+        if not terminate and self.alive():
+            try:
+                self.conn.send(None)
+            except OSError:
+                terminate = True
+        if terminate and self.alive():
+            self.process.terminate()
+        self.process.join(timeout=5)
+        if self.process.is_alive():
+            self.process.kill()
+            self.process.join(timeout=5)
+        self.conn.close()
+
+
+class Pool:
+    """The persistent workers of this process."""
+
+    def __init__(self) -> None:
+        self.workers: list[Worker] = []
+        self.in_use = False  # by a render (see borrowed_pool)
+
+    def resize(self, n: int) -> None:
+        """n workers: idle ones that died are replaced. A busy one that died stays until the
+        render has seen its death (events), so that its unit is traced again, not lost."""
+        for dead in [w for w in self.idle() if not w.alive()]:
+            dead.stop(terminate=True)  # reaps it and closes its pipe
+            self.workers.remove(dead)
+        while len(self.workers) > n and self.idle():
+            self.stop_one(self.idle()[-1])
+        while len(self.workers) < n:
+            self.workers.append(Worker())
+
+    def stop_one(self, worker: Worker) -> None:
+        self.workers.remove(worker)
+        worker.stop(terminate=False)
+
+    def idle(self) -> list[Worker]:
+        return [w for w in self.workers if w.unit is None]
+
+    def busy(self) -> list[Worker]:
+        return [w for w in self.workers if w.unit is not None]
+
+    def replace(self, worker: Worker) -> None:
+        """A new process in place of `worker`, which is terminated if still running."""
+        worker.stop(terminate=True)
+        self.workers[self.workers.index(worker)] = Worker()
+
+    def terminate_busy(self) -> None:
+        """Stop units in flight (their results would reach the next render otherwise)."""
+        for worker in self.busy():
+            worker.stop(terminate=True)
+        self.workers = [w for w in self.workers if w.unit is None]
+
+    def drain(self, timeout: float) -> None:
+        """Let units in flight finish for up to `timeout` seconds, discarding their results,
+        so that a cancelled render does not cost the next one its workers' start."""
+        deadline = time.monotonic() + timeout
+        while self.busy() and deadline > time.monotonic():
+            for worker, message in self.events(deadline - time.monotonic()):
+                if message is None or message[0] in ("done", "error"):
+                    worker.unit = None
+
+    def events(self, timeout: float) -> list[tuple[Worker, tuple | None]]:
+        """Messages from busy workers, (worker, None) for one that died; [] on timeout."""
+        busy = self.busy()
+        handles = {}
+        for w in busy:
+            handles[w.conn] = w
+            handles[w.process.sentinel] = w
+        ready = wait_for(list(handles), timeout=max(0.0, timeout))
+        out: list[tuple[Worker, tuple | None]] = []
+        for w in dict.fromkeys(handles[h] for h in ready):  # each worker once, in order
+            try:
+                # A worker that sent its result and then died still delivers the result.
+                while w.conn.poll():
+                    out.append((w, w.conn.recv()))
+            except (EOFError, OSError):
+                pass
+            if not w.alive():
+                out.append((w, None))  # after its messages: a unit it finished is not lost
+        return out
+
+    def pids(self) -> list[int]:
+        return [w.process.pid for w in self.workers if w.alive() and w.process.pid is not None]
+
+    def shutdown(self) -> None:
+        # Terminated, not asked: an idle worker holds nothing to save, and one still starting
+        # would otherwise hold up the exit until its imports are done.
+        for worker in self.workers:
+            worker.stop(terminate=True)
+        self.workers = []
+
+
+pool = Pool()
+
+
+@contextmanager
+def borrowed_pool() -> Iterator[Pool]:
+    """The shared pool for one render; a private one, stopped afterwards, for a render that
+    starts while another still runs (two generators at once must not read each other's
+    messages)."""
+    if pool.in_use:
+        private = Pool()
+        try:
+            yield private
+        finally:
+            private.shutdown()
+        return
+    pool.in_use = True
+    try:
+        yield pool
+    finally:
+        pool.in_use = False
+
+
+def shutdown_workers() -> None:
+    """Stop the worker processes (the add-on calls this when it is disabled; also at exit)."""
+    pool.shutdown()
+
+
+def start_workers(n: int) -> None:
+    """Have n workers (starting them now, without waiting): call it early, so that their
+    start overlaps the caller's own imports and scene loading."""
+    pool.resize(n)
+
+
+def worker_pids() -> list[int]:
+    """Process ids of the live workers (a later render reuses them)."""
+    return pool.pids()
+
+
+atexit.register(shutdown_workers)
