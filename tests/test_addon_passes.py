@@ -96,6 +96,20 @@ def main():
         out["cycles"].append(multilayer(scene, os.path.join(os.getcwd(), f"cycles_{{run}}.exr")))
         H.configure_haze(scene, SAMPLES, 3, seed=run + 1)
         out["haze"].append(multilayer(scene, os.path.join(os.getcwd(), f"haze_{{run}}.exr")))
+    # Depth of other cameras (sample 0 only, so a few samples do): orthographic, and
+    # equirectangular (distance from the camera).
+    camera = scene.camera
+    for name in ("ortho", "equirect"):
+        if name == "ortho":
+            camera.data.type = "ORTHO"
+            camera.data.ortho_scale = 6.0
+        else:
+            camera.data.type = "PANO"
+            camera.data.panorama_type = "EQUIRECTANGULAR"
+        H.configure_cycles(scene, 4, 3, seed=1)
+        out[f"cycles_{{name}}"] = multilayer(scene, os.path.join(os.getcwd(), f"cycles_{{name}}.exr"))
+        H.configure_haze(scene, 4, 3, seed=1)
+        out[f"haze_{{name}}"] = multilayer(scene, os.path.join(os.getcwd(), f"haze_{{name}}.exr"))
     passes(view_layer, False)
     out["plain"] = multilayer(scene, os.path.join(os.getcwd(), "plain.exr"))
     return out
@@ -126,6 +140,8 @@ def renders(tmp_path_factory):
         "cycles": [read_passes(p) for p in run.result["cycles"]],
         "haze": [read_passes(p) for p in run.result["haze"]],
         "plain": read_passes(run.result["plain"]),
+        **{key: read_passes(path) for key, path in run.result.items()
+           if key.endswith(("_ortho", "_equirect"))},
     }
 
 
@@ -150,6 +166,17 @@ def test_sample_zero_passes_agree_with_cycles(renders, name):
         # The world gives 1e10 in both: where Cycles' whole neighbourhood saw it, so does Haze.
         sky = neighbourhood_range(renders["cycles"][0]["Depth"])[0] >= 1e9
         assert sky.mean() > 0.1 and (renders["haze"][0]["Depth"][sky] >= 1e9).all()
+
+
+@pytest.mark.parametrize("camera", ["ortho", "equirect"])
+def test_depth_of_other_cameras_agrees_with_cycles(renders, camera):
+    """Orthographic: depth along the view axis; equirectangular: distance from the camera."""
+    h, c = renders[f"haze_{camera}"]["Depth"], renders[f"cycles_{camera}"]["Depth"]
+    low, high = neighbourhood_range(c)
+    slack = 1e-4 * (1.0 + np.abs(c))
+    inside = (h >= low - slack) & (h <= high + slack)
+    assert inside.mean() >= 0.95, f"{camera}: {inside.mean():.3f} of pixels agree"
+    assert ((c > 0) & (c < 1e9)).mean() > 0.05, "the camera sees too little of the stage"
 
 
 def block_means(images: np.ndarray, block: int = 8) -> np.ndarray:
