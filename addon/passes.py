@@ -21,6 +21,7 @@ class PassSpec:
 
 COMBINED = PassSpec("Combined", "RGBA", "COLOR")
 DEPTH = PassSpec("Depth", "Z", "VALUE")
+MIST = PassSpec("Mist", "Z", "VALUE")
 POSITION = PassSpec("Position", "XYZ", "VECTOR")
 NORMAL = PassSpec("Normal", "XYZ", "VECTOR")
 DENOISING_NORMAL = PassSpec("Denoising Normal", "XYZ", "VECTOR")
@@ -40,6 +41,8 @@ def requested_passes(scene, view_layer) -> list[PassSpec]:
     passes = [COMBINED]
     if getattr(view_layer, "use_pass_z", False):
         passes.append(DEPTH)
+    if getattr(view_layer, "use_pass_mist", False):
+        passes.append(MIST)
     if getattr(view_layer, "use_pass_position", False):
         passes.append(POSITION)
     if getattr(view_layer, "use_pass_normal", False):

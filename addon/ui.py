@@ -134,6 +134,7 @@ class HAZE_VIEWLAYER_PT_passes(bpy.types.Panel):
         column = layout.column(heading="Data", align=True)
         column.prop(view_layer, "use_pass_combined")
         column.prop(view_layer, "use_pass_z")
+        column.prop(view_layer, "use_pass_mist")
         column.prop(view_layer, "use_pass_position")
         column.prop(view_layer, "use_pass_normal")
         cycles = getattr(view_layer, "cycles", None)

@@ -98,6 +98,7 @@ class CompiledScene:
     scene_radius: float
     transparent: bool = False  # Film > Transparent: the world seen directly gives alpha 0
     aovs: bool = False  # the surface stage writes the passes' columns (renderer.passes)
+    mist: tuple[float, float, float] = (5.0, 1.0 / 25.0, 2.0)  # start, 1 / depth, falloff exponent
 
 
 def _merge_meshes(scene: Scene, material_index: dict[str, int], medium_index: dict[str, int]):
@@ -196,7 +197,12 @@ def compile_scene(scene: Scene) -> CompiledScene:
     _, _, width, height = scene.film.window()
     return CompiledScene(vertices, indices, geometry, materials, lights, media, _camera(scene),
                          width, height, world_medium, has_media, needs_walk, radius,
-                         bool(scene.film.transparent), bool(scene.film.aovs))
+                         bool(scene.film.transparent), bool(scene.film.aovs), _mist(scene.film))
+
+
+def _mist(film) -> tuple[float, float, float]:
+    """Cycles' mist parameters (start, 1 / depth, falloff), as film.cpp sets them."""
+    return (float(film.mist_start), 1.0 / max(float(film.mist_depth), 1e-30), float(film.mist_falloff))
 
 
 def _lets_light_through(material) -> bool:

@@ -4,6 +4,7 @@ and values (kernel/film/read.h):
   Depth             camera-space depth of sample 0's first hit (distance from the camera
                     for panoramic cameras); 1e10 where it saw the world
   Position          sample 0's first hit in world space; 0 where it saw the world
+  Mist              1 - mean of (1 - mist) x throughput at the first hit (world: 1)
   Normal            mean world-space shading normal of the first hit, facing the camera
                     (misses count as 0)
   Denoising Normal  mean normal of the first diffuse-like hit, in Cycles' camera space
@@ -25,12 +26,13 @@ from .integrator.paths import (
     AOV_DNORMAL_VOLUME,
     AOV_FIRST,
     AOV_HIT0,
+    AOV_MIST,
     AOV_NORMAL,
     AOV_POSITION,
 )
 from .scene import Camera
 
-DATA_PASSES = ("Depth", "Position", "Normal")
+DATA_PASSES = ("Depth", "Position", "Normal", "Mist")
 DENOISING_PASSES = ("Denoising Normal", "Denoising Albedo")
 MISS_DEPTH = 1e10  # Cycles' Depth where the camera saw the world
 PANORAMIC = ("equirectangular", "fisheye_equidistant", "fisheye_equisolid", "mirrorball")
@@ -82,6 +84,8 @@ def film_passes(film: Film, camera: Camera, names: tuple[str, ...] = DATA_PASSES
             values = _column(film, AOV_POSITION, 3)  # only sample 0 added to it
         elif name == "Normal":
             values = _mean(film, AOV_NORMAL, 3)
+        elif name == "Mist":
+            values = np.clip(1.0 - _mean(film, AOV_MIST, 1), 0.0, 1.0)  # Cycles' film_get_pass_pixel_mist
         elif name == "Denoising Normal":
             # Surfaces give world normals; a scatter in a medium gives (0, 0, -1) in camera space.
             volume = _mean(film, AOV_DNORMAL_VOLUME, 1) * np.array([0.0, 0.0, -1.0])

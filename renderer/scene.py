@@ -123,6 +123,12 @@ class Film:
     region: tuple[int, int, int, int] | None = None
     transparent: bool = False
     aovs: bool = False  # also sum the data and denoising passes (renderer.passes); off = no cost
+    # The Mist pass (Blender's World > Mist Pass): 0 at mist_start from the camera, 1 at
+    # mist_start + mist_depth, shaped by mist_falloff (exponent: 2 quadratic, 1 linear,
+    # 0.5 inverse quadratic).
+    mist_start: float = 5.0
+    mist_depth: float = 25.0
+    mist_falloff: float = 2.0
 
     def window(self) -> tuple[int, int, int, int]:
         """(x, y, width, height) of the rendered pixels."""

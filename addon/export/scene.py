@@ -151,6 +151,19 @@ def add_light(instance, library: MaterialLibrary, lights: list, light_names: lis
         light_names.append(instance_group(instance))
 
 
+MIST_FALLOFF = {"QUADRATIC": 2.0, "LINEAR": 1.0, "INVERSE_QUADRATIC": 0.5}  # Cycles' exponents
+
+
+def _export_mist(world, film: Film) -> None:
+    """World > Mist Pass settings (start, depth, falloff) for the Mist pass."""
+    mist = getattr(world, "mist_settings", None)
+    if mist is None:
+        return
+    film.mist_start = float(mist.start)
+    film.mist_depth = float(mist.depth)
+    film.mist_falloff = MIST_FALLOFF.get(mist.falloff, 2.0)
+
+
 def export_scene(depsgraph, film: Film | None = None, render_depsgraph: bool = True) -> ExportResult:
     """Haze Scene of an evaluated depsgraph; `film` overrides the output size (e.g. the engine's)."""
     messages = Messages()
@@ -158,6 +171,7 @@ def export_scene(depsgraph, film: Film | None = None, render_depsgraph: bool = T
     film = film or Film(*film_size(scene.render))
     film.region = render_region(scene.render, film.width, film.height)
     film.transparent = bool(scene.render.film_transparent)
+    _export_mist(scene.world, film)
     camera_object = scene.camera.evaluated_get(depsgraph) if scene.camera is not None else None
     camera = export_camera(camera_object, film, scene.render, scene.name, messages)
     library = MaterialLibrary(messages)

@@ -27,6 +27,7 @@ import math
 from ..bsdfs import DIFFUSE, PLASTIC, ROUGH_CONDUCTOR, SIDE_BACK, SIDE_FRONT, TRANSPARENT
 from ..bsdfs.layout import L_COLOR, L_KIND, L_ROUGH, L_SIDES, L_WEIGHT, M_COUNT, M_FIRST
 from ..bsdfs.material import _lobe_selection
+from ..camera import ORTHOGRAPHIC, PROJ_KIND
 from ..kernels import kernel
 from .paths import (
     AOV_DALBEDO,
@@ -37,6 +38,7 @@ from .paths import (
     AOV_FEAT_DONE,
     AOV_FEAT_T,
     AOV_HIT0,
+    AOV_MIST,
     AOV_NORMAL,
     AOV_POSITION,
     AOV_SAMPLE0,
@@ -88,9 +90,24 @@ def aov_background(L, pid):
 
 
 @kernel
-def aov_surface(L, pid, mt, m, front, x, facing, depth):
+def mist_amount(cam, mist, x):
+    """Cycles' mist at point x: saturate((distance - start) / depth) ^ falloff, the distance
+    from the camera (along its view axis for an orthographic camera: camera_distance)."""
+    to_world = cam.to_world
+    dx, dy, dz = x[0] - to_world[0, 3], x[1] - to_world[1, 3], x[2] - to_world[2, 3]
+    if int(cam.projection[PROJ_KIND]) == ORTHOGRAPHIC:
+        ax, ay, az = to_world[0, 2], to_world[1, 2], to_world[2, 2]
+        dist = abs(dx * ax + dy * ay + dz * az) / math.sqrt(ax * ax + ay * ay + az * az)
+    else:
+        dist = math.sqrt(dx * dx + dy * dy + dz * dz)
+    amount = min(max((dist - mist[0]) * mist[1], 0.0), 1.0)
+    return amount ** mist[2]
+
+
+@kernel
+def aov_surface(L, pid, mt, m, front, x, facing, depth, beta, cam, mist):
     """The passes at a surface hit with lobes at point x, shading normal `facing` (turned
-    toward the incoming ray), after `depth` scattering events."""
+    toward the incoming ray), after `depth` scattering events, path throughput beta."""
     mats, lobes = mt
     start = mats[m, M_FIRST]
     end = start + mats[m, M_COUNT]
@@ -128,6 +145,8 @@ def aov_surface(L, pid, mt, m, front, x, facing, depth):
                 L[pid, AOV_POSITION + c] = x[c]
         for c in range(3):
             L[pid, AOV_NORMAL + c] += facing[c]
+        # Cycles writes (1 - mist) x mean throughput and reads Mist as 1 - the mean.
+        L[pid, AOV_MIST] += (1.0 - mist_amount(cam, mist, x)) * (beta[0] + beta[1] + beta[2]) / 3.0
         L[pid, AOV_DATA_DONE] = 1.0
 
     if L[pid, AOV_FEAT_DONE] != 0.0:

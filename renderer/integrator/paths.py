@@ -36,13 +36,14 @@ AOV_NORMAL = 8  # shading normal (facing the ray) of the first non-transparent h
 AOV_DALBEDO = 11  # Denoising Albedo: feature throughput x diffuse-like albedo (or emission seen)
 AOV_DNORMAL = 14  # Denoising Normal, world space (renderer.passes turns it into camera space)
 AOV_DNORMAL_VOLUME = 17  # weight of Cycles' volume denoising normal, (0, 0, -1) in camera space
-AOV_COUNT = 14
-AOV_SAMPLE0 = 18  # scratch: 1 for sample 0 of its pixel (set by the wavefront)
-AOV_DATA_DONE = 19  # scratch: the data passes (position, normal) were written
-AOV_FEAT_DONE = 20  # scratch: the denoising features were written
-AOV_FEAT_T = 21  # scratch, 3 columns: feature throughput (product of the specular albedos passed)
-AOV_FEAT_DEPTH = 24  # scratch: the path's depth after the last surface the features looked at
-L_COLUMNS_AOV = 25
+AOV_MIST = 18  # (1 - mist) x mean throughput at the data passes' hit; Mist = 1 - its mean
+AOV_COUNT = 15
+AOV_SAMPLE0 = 19  # scratch: 1 for sample 0 of its pixel (set by the wavefront)
+AOV_DATA_DONE = 20  # scratch: the data passes (position, normal) were written
+AOV_FEAT_DONE = 21  # scratch: the denoising features were written
+AOV_FEAT_T = 22  # scratch, 3 columns: feature throughput (product of the specular albedos passed)
+AOV_FEAT_DEPTH = 25  # scratch: the path's depth after the last surface the features looked at
+L_COLUMNS_AOV = 26
 
 
 @inline_kernel

@@ -67,11 +67,12 @@ MAX_CROSSINGS = 256  # interfaces a path may pass before it is ended (guards ope
 
 
 @kernel
-def shade_surface(n, ps, prim, bu, bv, geo, mt, lt, env_light, sun_rows, cfg, L, sh, s):
+def shade_surface(n, ps, prim, bu, bv, geo, mt, lt, env_light, sun_rows, cfg, L, sh, s, cam, mist):
     """Shade the closest hits of paths 0..n-1 that are PATH_ACTIVE (prim -1 = escaped;
     ps.tmax holds the hit distance): emission, next-event estimation, BSDF sampling, Russian
     roulette. Writes new rays into ps, kills finished paths, appends shadow rays to sh from
-    index s. Returns the number of shadow rays written in all."""
+    index s. cam (the camera tuple) and mist (start, 1 / depth, falloff) serve the Mist
+    pass. Returns the number of shadow rays written in all."""
     max_bounces = cfg[CFG_MAX_BOUNCES]
     sampling = cfg[CFG_SAMPLING]
     transparent = cfg[CFG_FILM_TRANSPARENT] != 0
@@ -141,7 +142,7 @@ def shade_surface(n, ps, prim, bu, bv, geo, mt, lt, env_light, sun_rows, cfg, L,
                 # A pure emitter (Cycles' Emission shader): black, opaque.
                 if aov_open:
                     sn = _shading_normal(geo, p, b0, b1, b2, ng)
-                    aov_surface(L, pid, mt, m, front, x, sn if front else neg(sn), depth)
+                    aov_surface(L, pid, mt, m, front, x, sn if front else neg(sn), depth, beta, cam, mist)
                 ps.alive[i] = PATH_DEAD
                 continue
             # An invisible interface: cross it without scattering.
@@ -150,7 +151,7 @@ def shade_surface(n, ps, prim, bu, bv, geo, mt, lt, env_light, sun_rows, cfg, L,
             continue
         sn = _shading_normal(geo, p, b0, b1, b2, ng)
         if aov_open:
-            aov_surface(L, pid, mt, m, front, x, sn if front else neg(sn), depth)
+            aov_surface(L, pid, mt, m, front, x, sn if front else neg(sn), depth, beta, cam, mist)
         if depth > max_bounces:
             ps.alive[i] = PATH_DEAD
             continue

@@ -79,6 +79,7 @@ class Tracer:
         # RGB and transparency, and the render passes' columns when they were asked for.
         self.L = np.zeros((self.batch, L_COLUMNS_AOV if self.aovs else L_COLUMNS), np.float64)
         self.no_aov = np.zeros((0, AOV_COUNT), np.float64)  # splat's film_aov without passes
+        self.mist = np.array(cs.mist, np.float64)  # the Mist pass's start, 1 / depth, falloff
         self.pixel_of_pid = np.zeros(self.batch, np.int32)
         self.remaining = np.zeros(2 * self.batch, np.float32)
         self.lt = kernel_arrays(cs.lights)
@@ -96,7 +97,7 @@ class Tracer:
             (K.start_paths, (ps, self.pixel_of_pid, cs.camera, cs.width, cs.height, 0, 0, 1, 0,
                              self.init_stack)),
             (K.shade_surface, (1, ps, prim, bu, bv, cs.geometry, cs.materials, lt, cs.lights.env_light,
-                               cs.lights.sun_rows, cfg, L, sh, 0)),
+                               cs.lights.sun_rows, cfg, L, sh, 0, cs.camera, self.mist)),
             (K.compact_paths, (1, ps)),
             (K.splat, (1, L, self.pixel_of_pid, np.zeros((1, 3), np.float64), np.zeros((1, 3), np.float64),
                        np.zeros(1, np.int64), np.zeros(1, np.int64), np.zeros(1, np.float64), self.no_aov)),
@@ -137,7 +138,8 @@ class Tracer:
                 count = K.shade_media(live, ps, prim, self.lt, self.md, self.cfg, self.L, sh, self.nb,
                                       self.grid_md)
             count = K.shade_surface(live, ps, prim, bu, bv, cs.geometry, cs.materials, self.lt,
-                                    cs.lights.env_light, cs.lights.sun_rows, self.cfg, self.L, sh, count)
+                                    cs.lights.env_light, cs.lights.sun_rows, self.cfg, self.L, sh, count,
+                                    cs.camera, self.mist)
             if count:
                 self._shadows(count)
             live = K.compact_paths(live, ps)
