@@ -186,7 +186,7 @@ class RenderSession:
     def _on_compile(self, names: list[str]) -> None:
         """The kernels are not in the cache: say why the first image takes minutes."""
         self.engine.update_stats("", COMPILING_TEXT)
-        print(f"Haze: compiling kernels (first run only): {', '.join(names)}")
+        print(f"Haze: compiling kernels (first run only): {', '.join(names)}", file=sys.stderr, flush=True)
 
     def _workers(self) -> int:
         from .export.scene import worker_count
