@@ -180,6 +180,7 @@ class RenderSession:
         exported = export_validated(self.depsgraph, (self.width, self.height), exporter=self._exporter,
                                     on_start=lambda: self.engine.update_stats("", "Haze | Exporting scene"),
                                     on_warnings=self._report_warnings)
+        self._check_memory(exported.scene)
         render_progressive = self._renderer
         if render_progressive is None:
             from renderer.render import render_progressive
@@ -201,10 +202,20 @@ class RenderSession:
         if note:
             self.engine.report({"WARNING"}, f"Haze: {note}")
 
+    def _check_memory(self, scene) -> None:
+        """Refuse a render the machine has no memory for, before it starts (not a crash halfway)."""
+        from renderer.errors import SceneError
+        from renderer.validate import check_render_memory
+
+        try:
+            check_render_memory(scene.film, self._workers())
+        except SceneError as error:
+            raise ExportError("Haze", str(error)) from error
+
     def _on_compile(self, names: list[str]) -> None:
         """The kernels are not in the cache: say why the first image takes minutes."""
         self.engine.update_stats("", COMPILING_TEXT)
-        print(f"Haze: compiling kernels (first run only): {', '.join(names)}")
+        print(f"Haze: compiling kernels (first run only): {', '.join(names)}", file=sys.stderr, flush=True)
 
     def _workers(self) -> int:
         from .export.scene import worker_count

@@ -202,6 +202,16 @@ def test_invalid_scene_error_names_the_blender_object():
     assert text.startswith("Haze scene: 'Floor' (meshes[0].indices): index 7 out of range")
 
 
+def test_a_render_too_large_for_memory_is_refused_before_it_starts(monkeypatch):
+    import renderer.validate
+
+    monkeypatch.setattr(renderer.validate, "available_memory_bytes", lambda: 1000)  # 1 kB left
+    engine = run(FakeEngine(), renderer := FakeRenderer())
+    (kind, text), = engine.reports
+    assert kind == "ERROR" and "needs about" in text and "memory" in text, text
+    assert renderer.kwargs is None and engine.calls == ["begin", "end"]
+
+
 def test_renderer_failure_is_reported_not_raised():
     engine = run(FakeEngine(), renderer := FakeRenderer(fail_at=2, error=ValueError("kernel exploded")))
     assert ("ERROR", "Haze: ValueError: kernel exploded") in engine.reports
