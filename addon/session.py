@@ -180,15 +180,15 @@ class RenderSession:
         exported = export_validated(self.depsgraph, (self.width, self.height), exporter=self._exporter,
                                     on_start=lambda: self.engine.update_stats("", "Haze | Exporting scene"),
                                     on_warnings=self._report_warnings)
+        # The passes cost nothing unless asked for: only then does the renderer write them.
+        exported.scene.film.aovs = needs_aovs(self.passes, self.denoise)
+        self.camera = exported.scene.camera
         self._check_memory(exported.scene)
         render_progressive = self._renderer
         if render_progressive is None:
             from renderer.render import render_progressive
 
         self.engine.update_stats("", "Haze | Rendering")
-        # The passes cost nothing unless asked for: only then does the renderer write them.
-        exported.scene.film.aovs = needs_aovs(self.passes, self.denoise)
-        self.camera = exported.scene.camera
         # Always the worker pool, one worker included: Esc and the time limit can only stop a
         # numba kernel in another process (the pool's workers persist across renders).
         frames = render_progressive(exported.scene, workers=self._workers(),

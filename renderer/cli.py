@@ -201,6 +201,7 @@ def render_command(args) -> int:
     if problem:
         print(f"error: {problem}", file=sys.stderr)
         return 2
+    scene.film.aovs = bool(args.denoise)  # the denoiser's albedo and normal passes
     check_render_memory(scene.film, args.workers)
     # Before numba loads here: the first worker's start overlaps this process's imports (the
     # others start once it is heard from: renderer.render._PoolRender._pool_size).
@@ -221,7 +222,6 @@ def _render_and_write(args, scene) -> int:
         s.seed = args.seed
     if args.max_bounces is not None:
         s.max_bounces = args.max_bounces
-    scene.film.aovs = bool(args.denoise)  # the denoiser's albedo and normal passes
     t0 = time.perf_counter()
     last = None
     interrupted = False

@@ -67,6 +67,9 @@ FILM_BYTES_PER_PIXEL = 56
 PROGRESS_BYTES_PER_PIXEL = 12 + 24 + 24
 # Each worker process fills its own film, and the parent holds it again while merging.
 WORKER_BYTES_PER_PIXEL = 2 * FILM_BYTES_PER_PIXEL
+# The render passes' sums when the film has them (film.aovs): integrator.paths.AOV_COUNT
+# float64 columns (a constant here: importing the integrator would load numba).
+AOV_BYTES_PER_PIXEL = 15 * 8
 
 
 def validate_scene(scene: Scene) -> None:
@@ -119,7 +122,9 @@ def render_memory_bytes(film: Film, workers: int) -> int:
     """An estimate of the memory a render of `film` with `workers` processes needs."""
     pixels = film.width * film.height
     extra_workers = workers if workers > 1 else 0  # one worker renders in the calling process
-    return pixels * (FILM_BYTES_PER_PIXEL + PROGRESS_BYTES_PER_PIXEL + extra_workers * WORKER_BYTES_PER_PIXEL)
+    aovs = AOV_BYTES_PER_PIXEL if getattr(film, "aovs", False) else 0
+    worker_bytes = WORKER_BYTES_PER_PIXEL + 2 * aovs  # as WORKER_BYTES_PER_PIXEL: two films in flight
+    return pixels * (FILM_BYTES_PER_PIXEL + aovs + PROGRESS_BYTES_PER_PIXEL + extra_workers * worker_bytes)
 
 
 def available_memory_bytes() -> int | None:

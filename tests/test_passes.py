@@ -109,3 +109,14 @@ def test_command_line_denoise(tmp_path):
     # Smoother: the denoised image's pixel-to-pixel differences are far smaller.
     roughness = [float(np.abs(np.diff(im, axis=1)).mean()) for im in (raw_image, clean_image)]
     assert roughness[1] < 0.5 * roughness[0]
+
+
+def test_memory_estimate_counts_the_pass_sums():
+    from renderer.integrator.paths import AOV_COUNT
+    from renderer.validate import AOV_BYTES_PER_PIXEL, render_memory_bytes
+
+    assert AOV_BYTES_PER_PIXEL == AOV_COUNT * 8
+    scene = cornell_box(size=100, spp=1)
+    plain = render_memory_bytes(scene.film, 2)
+    scene.film.aovs = True
+    assert render_memory_bytes(scene.film, 2) == plain + 100 * 100 * AOV_BYTES_PER_PIXEL * (1 + 2 * 2)
