@@ -31,7 +31,6 @@ import sys
 import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
-from typing import NamedTuple
 
 import numpy as np
 
@@ -39,6 +38,7 @@ from .compile import CompiledScene, compile_scene
 from .film import Film
 from .integrator.wavefront import Tracer
 from .scene import IntegratorSettings, Scene
+from .units import Unit, iter_units, plan_units, trace_unit
 from .workers import (
     Shipment,
     Worker,
@@ -53,15 +53,6 @@ from .workers import (
 __all__ = ["Progress", "Unit", "default_workers", "iter_units", "plan_units", "render", "render_progressive",
            "shutdown_workers", "start_workers", "worker_pids"]
 
-# Unit size rule: about UNIT_PATHS path samples per unit, i.e. max(1, UNIT_PATHS // pixels)
-# samples per pixel: 0.1-0.2 s on one core for the Cornell box with or without fog (0.9-1.2
-# M samples/s per core, README), up to about 1 s for dense grids (3.6-8.7 us per sample).
-# Small enough that a time limit wastes little and a killed worker loses little; large
-# enough that shipping a unit's film back (24 bytes per pixel and channel) stays small.
-# The first units are smaller (1, 1, 2, 4, ... spp up to that size), so that the first
-# image comes quickly and both of two workers start at once. One sample per pixel is the
-# least: a unit spans the whole image (tiles would need the tracer to take a pixel range).
-UNIT_PATHS = 1 << 17
 # Progress is yielded at most this often (and always for the first and the last merge):
 # the image and its error estimate cost about a tenth of a unit's tracing at 256x256.
 YIELD_INTERVAL = 0.5
@@ -80,30 +71,6 @@ class Progress:
     error_estimate: float  # estimated relMSE of `image` (nan before 2 spp)
     film: Film
     note: str = ""  # what went wrong, when the render stopped short for another reason than asked
-
-
-class Unit(NamedTuple):
-    index: int  # merge order
-    first_sample: int
-    samples: int  # samples per pixel in this unit
-
-
-def iter_units(width: int, height: int, spp: int) -> Iterator[Unit]:
-    """The render's units in order (see UNIT_PATHS): a function of the image size and spp
-    only. A generator, since a benchmark's "render until stopped" asks for 2^20 spp."""
-    full = max(1, UNIT_PATHS // max(1, width * height))
-    index, start, size = 0, 0, 1
-    while start < spp:
-        count = min(size, full, spp - start)
-        yield Unit(index, start, count)
-        index += 1
-        start += count
-        if index >= 2:  # 1, 1, 2, 4, ...: two small units first, one per worker of two
-            size *= 2
-
-
-def plan_units(width: int, height: int, spp: int) -> list[Unit]:
-    return list(iter_units(width, height, spp))
 
 
 def _validate(scene: Scene) -> None:
@@ -150,13 +117,6 @@ def _target_reached(film: Film, target_error: float) -> bool:
 def _progress(film: Film, settings: IntegratorSettings, t0: float, note: str = "") -> Progress:
     return Progress(film.image(), film.spp, settings.spp, time.perf_counter() - t0, film.rel_mse_estimate(),
                     film, note)
-
-
-def trace_unit(tracer: Tracer, unit: Unit, seed: int) -> Film:
-    """One unit into a film of its own: merged by addition, in unit order, wherever traced."""
-    part = Film(tracer.cs.width, tracer.cs.height)
-    tracer.trace(part, unit.first_sample, unit.samples, seed)
-    return part
 
 
 class _Pacer:

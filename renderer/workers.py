@@ -35,8 +35,8 @@ from typing import TYPE_CHECKING, NamedTuple
 if TYPE_CHECKING:
     from .compile import CompiledScene
     from .integrator.wavefront import Tracer
-    from .render import Unit
     from .scene import IntegratorSettings
+    from .units import Unit
 
 
 class Shipment(NamedTuple):
@@ -69,7 +69,7 @@ def _worker_main(conn: Connection) -> None:
     # Ctrl-C reaches the whole process group; the parent decides what stops, and a worker
     # interrupted mid-unit would only print a traceback.
     signal.signal(signal.SIGINT, signal.SIG_IGN)
-    from .render import trace_unit  # the renderer and numba load now, before the first task
+    from .units import trace_unit  # the renderer and numba load now, before the first task
 
     key, tracer = None, None
     while True:

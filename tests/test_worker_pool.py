@@ -23,8 +23,9 @@ from renderer import render as render_module
 from renderer.compile import compile_scene
 from renderer.film import Film
 from renderer.integrator.wavefront import Tracer
-from renderer.render import UNIT_PATHS, Progress, plan_units, render_progressive, worker_pids
+from renderer.render import Progress, render_progressive, worker_pids
 from renderer.scene import Scene
+from renderer.units import UNIT_PATHS, plan_units
 
 
 def frames(scene: Scene, **options) -> list[Progress]:
