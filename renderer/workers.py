@@ -23,6 +23,7 @@ import os
 import pickle
 import signal
 import tempfile
+import threading
 import time
 import traceback
 from collections.abc import Iterator
@@ -108,12 +109,29 @@ def _picklable(error: Exception) -> Exception:
         return RuntimeError(f"{type(error).__name__}: {error}")
 
 
+@contextmanager
+def _sigint_ignored() -> Iterator[None]:
+    """SIGINT ignored while a worker starts: the new process inherits that (Python keeps an
+    ignored SIGINT), so a Ctrl-C sent to the process group while it is still importing
+    cannot interrupt it with a traceback; the parent decides what stops. Only the main
+    thread may set handlers (F12 in Blender's UI renders on another thread; no Ctrl-C there)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
 class Worker:
     def __init__(self) -> None:
         ctx = multiprocessing.get_context("spawn")  # Blender cannot fork; spawn everywhere alike
         self.conn, child = ctx.Pipe()
         self.process = ctx.Process(target=_worker_main, args=(child,), daemon=True, name="haze-worker")
-        self.process.start()
+        with _sigint_ignored():
+            self.process.start()
         child.close()
         self.unit: Unit | None = None  # the unit in flight
         self.compiling = False
