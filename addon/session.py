@@ -205,7 +205,7 @@ class RenderSession:
     def _check_memory(self, scene) -> None:
         """Refuse a render the machine has no memory for, before it starts (not a crash halfway)."""
         from renderer.errors import SceneError
-        from renderer.validate import check_render_memory
+        from renderer.memory import check_render_memory
 
         try:
             check_render_memory(scene.film, self._workers())

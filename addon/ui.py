@@ -112,19 +112,12 @@ class HAZE_RENDER_PT_performance(HazeRenderPanel, bpy.types.Panel):
         layout.prop(context.scene.haze, "workers")
 
 
-class HAZE_VIEWLAYER_PT_passes(bpy.types.Panel):
+class HAZE_VIEWLAYER_PT_passes(HazeRenderPanel, bpy.types.Panel):
     """The passes Haze renders (View Layer > Passes): the toggles are Blender's and Cycles'
     own, so a scene set up for Cycles asks Haze for the same passes."""
 
-    bl_space_type = "PROPERTIES"
-    bl_region_type = "WINDOW"
     bl_context = "view_layer"
     bl_label = "Passes"
-    COMPAT_ENGINES = {ENGINE}
-
-    @classmethod
-    def poll(cls, context) -> bool:
-        return context.engine in cls.COMPAT_ENGINES
 
     def draw(self, context) -> None:
         layout = self.layout

@@ -181,8 +181,8 @@ class CompileTicker:
 
 
 def render_command(args) -> int:
+    from .memory import check_render_memory
     from .scenefile import load_scene_and_inputs
-    from .validate import check_render_memory
     from .workers import start_workers
 
     problem = _check(args)

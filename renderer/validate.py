@@ -10,7 +10,6 @@ problem is a SceneError whose message starts with the field path, e.g. `meshes[2
 
 from __future__ import annotations
 
-import os
 from collections.abc import Collection
 from typing import Any
 
@@ -61,15 +60,6 @@ MIN_DIRECTION_LENGTH = 1e-12
 MAX_IOR = 1e6
 # Stefan-Boltzmann radiance scaled as Cycles does (renderer/media/blackbody.py): times T^4.
 _BLACKBODY_FACTOR = 5.670373e-8 / np.pi * 1e-6
-# Bytes per pixel a render holds: the film's sums, squares and counts (2 * 24 + 8), and
-# per progress update the float32 image with the float64 mean and variance behind it.
-FILM_BYTES_PER_PIXEL = 56
-PROGRESS_BYTES_PER_PIXEL = 12 + 24 + 24
-# Each worker process fills its own film, and the parent holds it again while merging.
-WORKER_BYTES_PER_PIXEL = 2 * FILM_BYTES_PER_PIXEL
-# The render passes' sums when the film has them (film.aovs): integrator.paths.AOV_COUNT
-# float64 columns (a constant here: importing the integrator would load numba).
-AOV_BYTES_PER_PIXEL = 15 * 8
 
 
 def validate_scene(scene: Scene) -> None:
@@ -116,48 +106,6 @@ def validate_material(material: Material, path: str) -> None:
     it, so the lobe table never holds a kind, side or Fresnel mode the kernels lack."""
     conform_object(material, (Material,), path)
     _check_material(material, path)
-
-
-def render_memory_bytes(film: Film, workers: int) -> int:
-    """An estimate of the memory a render of `film` with `workers` processes needs."""
-    pixels = film.width * film.height
-    extra_workers = workers if workers > 1 else 0  # one worker renders in the calling process
-    aovs = AOV_BYTES_PER_PIXEL if getattr(film, "aovs", False) else 0
-    worker_bytes = WORKER_BYTES_PER_PIXEL + 2 * aovs  # as WORKER_BYTES_PER_PIXEL: two films in flight
-    return pixels * (FILM_BYTES_PER_PIXEL + aovs + PROGRESS_BYTES_PER_PIXEL + extra_workers * worker_bytes)
-
-
-def available_memory_bytes() -> int | None:
-    """Memory the machine can give a new render now (Linux MemAvailable), or None if unknown."""
-    try:
-        with open("/proc/meminfo", encoding="ascii") as meminfo:
-            for line in meminfo:
-                if line.startswith("MemAvailable:"):
-                    return int(line.split()[1]) * 1024
-    except (OSError, ValueError, IndexError):
-        pass
-    try:
-        return os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
-    except (OSError, ValueError, AttributeError):
-        return None
-
-
-def check_render_memory(film: Film, workers: int, available: int | None = None) -> None:
-    """Refuse a film whose render would need more memory than the machine has.
-
-    The validator allows films up to MAX_FILM_SIDE on a side; whether one fits depends on
-    the machine, so the command line checks it before rendering instead of failing with a
-    MemoryError (or the system killing the process) partway through.
-    """
-    available = available_memory_bytes() if available is None else available
-    needed = render_memory_bytes(film, workers)
-    if available is not None and needed > available:
-        size = f"{film.width}x{film.height}"
-        raise SceneError(
-            "film",
-            f"a {size} render with {workers} worker(s) needs about {needed / 1e9:.1f} GB of memory; "
-            f"this machine has {available / 1e9:.1f} GB available",
-        )
 
 
 def check_choice(value: str, allowed: Collection[str], path: str, what: str) -> None:

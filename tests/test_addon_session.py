@@ -203,9 +203,9 @@ def test_invalid_scene_error_names_the_blender_object():
 
 
 def test_a_render_too_large_for_memory_is_refused_before_it_starts(monkeypatch):
-    import renderer.validate
+    import renderer.memory
 
-    monkeypatch.setattr(renderer.validate, "available_memory_bytes", lambda: 1000)  # 1 kB left
+    monkeypatch.setattr(renderer.memory, "available_memory_bytes", lambda: 1000)  # 1 kB left
     engine = run(FakeEngine(), renderer := FakeRenderer())
     (kind, text), = engine.reports
     assert kind == "ERROR" and "needs about" in text and "memory" in text, text

@@ -11,21 +11,13 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from render_helpers import render_film
 
 from examples.scenes import box, cornell_box, furnace_sphere, quad
 from renderer.film import Film
-from renderer.render import render_progressive
 from renderer.scene import Lobe, Material, Medium, Mesh, Scene
 
 Z = 5.0  # z-score bound on the estimator's own variance
-
-
-def render_film(scene: Scene, workers: int = 1) -> Film:
-    last = None
-    for last in render_progressive(scene, workers=workers):  # noqa: B007
-        pass
-    assert last is not None
-    return last.film
 
 
 def test_region_renders_exactly_the_full_frames_window():

@@ -11,25 +11,16 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from render_helpers import render_film
 
 from examples.scenes import cornell_box, cornell_fog
 from renderer.compile import compile_scene
 from renderer.denoise import available, denoise
-from renderer.film import REL_EPS, Film
+from renderer.film import REL_EPS
 from renderer.integrator.config import CFG_AOVS
 from renderer.integrator.paths import L_COLUMNS, L_COLUMNS_AOV
 from renderer.integrator.wavefront import Tracer
 from renderer.passes import MISS_DEPTH, film_passes
-from renderer.render import render_progressive
-from renderer.scene import Scene
-
-
-def render_film(scene: Scene, workers: int = 1) -> Film:
-    last = None
-    for last in render_progressive(scene, workers=workers):  # noqa: B007
-        pass
-    assert last is not None
-    return last.film
 
 
 def rel_mse(image: np.ndarray, reference: np.ndarray) -> float:
@@ -113,7 +104,7 @@ def test_command_line_denoise(tmp_path):
 
 def test_memory_estimate_counts_the_pass_sums():
     from renderer.integrator.paths import AOV_COUNT
-    from renderer.validate import AOV_BYTES_PER_PIXEL, render_memory_bytes
+    from renderer.memory import AOV_BYTES_PER_PIXEL, render_memory_bytes
 
     assert AOV_BYTES_PER_PIXEL == AOV_COUNT * 8
     scene = cornell_box(size=100, spp=1)

@@ -13,24 +13,16 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from render_helpers import render_film
 
 from examples.scenes import cornell_box, furnace_sphere, icosphere, point_light_plane, quad
 from renderer.film import Film
 from renderer.imageio import read_exr
-from renderer.render import render_progressive
 from renderer.scene import Camera, IntegratorSettings, Lobe, Material, Mesh, PointLight, Scene
 from renderer.scene import Film as FilmSettings
 from renderer.scenefile import save_scene
 
 Z = 5.0  # z-score bound: a false alarm about once in 3.5 million checks
-
-
-def render_film(scene: Scene, workers: int = 1) -> Film:
-    last = None
-    for last in render_progressive(scene, workers=workers):  # noqa: B007
-        pass
-    assert last is not None
-    return last.film
 
 
 def assert_mean_close(film: Film, expected: np.ndarray, mask: np.ndarray | None = None) -> None:

@@ -24,9 +24,10 @@ from examples.scenes import cornell_box, cornell_fog
 from renderer import cli
 from renderer.errors import SceneError
 from renderer.imageio import is_haze_png, read_exr, write_exr, write_png
+from renderer.memory import check_render_memory, render_memory_bytes
 from renderer.scene import Film, Medium, SunLight
 from renderer.scenefile import EXPORT_GENERATOR, load_scene, save_scene
-from renderer.validate import check_render_memory, render_memory_bytes, validate_scene
+from renderer.validate import validate_scene
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -432,7 +433,7 @@ def test_a_film_too_large_for_memory_is_refused_with_the_memory_needed() -> None
 
 
 def test_the_cli_refuses_a_huge_film_in_one_line(tmp_path: Path, capsys) -> None:
-    from renderer.validate import available_memory_bytes
+    from renderer.memory import available_memory_bytes
 
     scene = cornell_box(size=8, spp=1)
     scene.film = Film(16384, 16384)

@@ -93,6 +93,17 @@ def test_units_are_merged_in_order_and_the_rest_on_a_stop():
     assert merged.sum[0, 0] == 1.0 + 10.0 + 1000.0
 
 
+def run_worker_loop(conn) -> None:
+    """A worker's loop run here, until it is sent None; it ignores SIGINT, so restore ours."""
+    from renderer import workers
+
+    saved = signal.getsignal(signal.SIGINT)
+    try:
+        workers._worker_main(conn)
+    finally:
+        signal.signal(signal.SIGINT, saved)
+
+
 def test_a_worker_builds_its_tracer_once_per_scene(tmp_path):
     """The worker loop, run here: two units of one scene, then one of another, then stop."""
     from multiprocessing import Pipe
@@ -109,11 +120,7 @@ def test_a_worker_builds_its_tracer_once_per_scene(tmp_path):
         for shipment, unit in [(first, units[0]), (first, units[1]), (second, units[0])]:
             parent.send((shipment, unit, 0))
         parent.send(None)
-        saved = signal.getsignal(signal.SIGINT)
-        try:
-            workers._worker_main(child)
-        finally:
-            signal.signal(signal.SIGINT, saved)
+        run_worker_loop(child)
     replies = []
     while parent.poll():
         replies.append(parent.recv())
@@ -130,11 +137,7 @@ def test_a_failing_worker_reports_the_error_and_goes_on():
     parent, child = Pipe()
     parent.send((workers.Shipment("no-such-scene", "/nonexistent/haze-scene.pkl"), plan_units(8, 8, 1)[0], 0))
     parent.send(None)
-    saved = signal.getsignal(signal.SIGINT)
-    try:
-        workers._worker_main(child)
-    finally:
-        signal.signal(signal.SIGINT, saved)
+    run_worker_loop(child)
     kind, index, error, text = parent.recv()
     assert (kind, index) == ("error", 0) and isinstance(error, FileNotFoundError) and "Traceback" in text
 
