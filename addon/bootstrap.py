@@ -48,7 +48,7 @@ def configure_numba_cache() -> Path:
     """Share the command line's kernel cache, unless the user chose a cache folder.
 
     The renderer's kernels go to `<root>/kernels-<build key>` whatever NUMBA_CACHE_DIR says
-    (renderer.kernels.cache); numba's other cached functions (the add-on's flipcopy) go to
+    (renderer.kernels.cache); numba's other cached functions (none of Haze's today) go to
     NUMBA_CACHE_DIR, so it is pointed at the same root: otherwise numba would write them
     into the installed extension's folder. Returns the root. If numba was imported before
     us (by another add-on), its configuration is re-read so the setting still applies.

@@ -85,7 +85,7 @@ def shared_numba_cache() -> Path:
     hence one folder per hash of those sources, under build/ (never committed).
     """
     digest = hashlib.sha256()
-    for path in sorted((REPO / "renderer").rglob("*.py")) + [REPO / "addon" / "flipcopy.py"]:
+    for path in sorted((REPO / "renderer").rglob("*.py")):
         digest.update(path.relative_to(REPO).as_posix().encode())
         digest.update(path.read_bytes())
     folder = REPO / "build" / "numba-test-cache" / digest.hexdigest()[:16]

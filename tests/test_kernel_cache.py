@@ -101,7 +101,9 @@ with event.install_recorder("numba:compile") as rec:
     tracer = Tracer(cs, scene.integrator, said.append)
 compiled = [[ev.data["dispatcher"].py_func.__module__ + "." + ev.data["dispatcher"].py_func.__qualname__,
              str(ev.data["args"])] for _, ev in rec.buffer if ev.is_start]
-print(json.dumps({{"compiled": compiled, "said": said, "seconds": tracer.compile_seconds}}))
+subtrees = [k.py_func.__module__ + "." + k.py_func.__qualname__ for k, _ in tracer.subtree_calls()]
+print(json.dumps({{"compiled": compiled, "said": said, "seconds": tracer.compile_seconds,
+                  "subtrees": subtrees}}))
 """
 
 
@@ -122,6 +124,10 @@ def test_two_processes_on_a_cold_cache_never_compile_the_same_function(tmp_path)
     # The stage kernels are all compiled, each once, between the two.
     stages_compiled = [name for name, _ in first | second if name.split(".")[-1] in stages.__all__]
     assert len(stages_compiled) == len(set(stages_compiled)) >= 4, stages_compiled
+    # The helpers listed ahead of the stages were compiled for the stages' own argument
+    # types: one signature each (a second one would be the stage compiling it again).
+    helpers = [name for name, _ in first | second if name in results[0]["subtrees"]]
+    assert sorted(helpers) == sorted(set(results[0]["subtrees"])), sorted(first | second)
     # Whoever compiled said so first, naming the kernels.
     for r in results:
         if r["compiled"]:

@@ -7,15 +7,20 @@ from collections.abc import Callable
 
 import numpy as np
 
+from ..bsdfs.material import bsdf_eval, bsdf_sample
 from ..compile import MAX_STACK, CompiledScene
 from ..film import Film
 from ..geometry import Intersector
 from ..kernels.warmup import KernelCall, warm_up
+from ..lights.sample import connect_light, escaped_radiance, triangle_light_pdf
 from ..lights.table import kernel_arrays
 from ..media.layout import dda_scratch
+from ..media.stack_phase import phase_eval, sample_phase
 from ..scene import IntegratorSettings
 from . import stages as K
+from .aovs import aov_surface
 from .config import CFG_AOVS, make_config
+from .media_stage import _flush_nee_batch
 from .nee_batch import NeeBatch
 from .paths import AOV_COUNT, AOV_FEAT_T, AOV_SAMPLE0, L_COLUMNS, L_COLUMNS_AOV
 from .state import allocate_paths, allocate_shadows
@@ -93,7 +98,7 @@ class Tracer:
         its types): what warm_up compiles before the first batch."""
         cs, ps, sh, lt, cfg, L = self.cs, self.ps, self.sh, self.lt, self.cfg, self.L
         prim, bu, bv = np.full(1, -1, np.int32), np.zeros(1, np.float32), np.zeros(1, np.float32)
-        calls: list[KernelCall] = [
+        calls: list[KernelCall] = self.subtree_calls() + [
             (K.start_paths, (ps, self.pixel_of_pid, cs.camera, cs.width, cs.height, 0, 0, 1, 0,
                              self.init_stack)),
             (K.shade_surface, (1, ps, prim, bu, bv, cs.geometry, cs.materials, lt, cs.lights.env_light,
@@ -112,6 +117,35 @@ class Tracer:
             calls.append((K.resolve_shadows, (1, sh, np.zeros(1, np.bool_), L)))
             if cs.has_media:
                 calls.append((K.shadow_media, (1, sh, self.md, cfg, self.grid_md)))
+        return calls
+
+    def subtree_calls(self) -> list[KernelCall]:
+        """The largest helpers inside shade_surface and shade_media, with the argument types
+        those kernels pass them, listed before the kernels (see renderer.kernels.warmup).
+
+        A stage kernel compiles its helpers while numba types it, in one process, so on a
+        cold cache its compile was one long task: shade_surface took 40 of the surface box's
+        47 CPU seconds (BSDF evaluation and sampling 19 of them). Listed here, the helpers are
+        compiled first, each under its own lock, and a second worker compiles some of them
+        while the first compiles others; the stage kernel then loads them. The types must be
+        exactly the stage's (tests/test_kernel_cache.py checks that no helper compiles
+        twice), or the helper would compile once more for the stage's own types."""
+        cs, lt, v = self.cs, self.lt, (0.0, 0.0, 1.0)
+        m, light, tri = np.int32(0), 0, np.int32(0)
+        calls: list[KernelCall] = [
+            (bsdf_eval, (cs.materials, m, True, v, v)),
+            (bsdf_sample, (cs.materials, m, True, v, 0.5, 0.5, 0.5, 0.5)),
+            # Compiled into shade_surface with or without passes (L's type is the same).
+            (aov_surface, (self.L, m, cs.materials, m, True, v, v, m, v, cs.camera, self.mist)),
+            (connect_light, (lt, light, v, v, 0.5, 0.5)),
+            (triangle_light_pdf, (lt, tri, v, v, 1.0)),
+            (escaped_radiance, (lt, light, cs.lights.sun_rows, v)),
+        ]
+        if cs.has_media:
+            stack = self.init_stack
+            calls = [(_flush_nee_batch, (0, self.nb, self.ps, self.cfg, self.sh, 0)),
+                     (phase_eval, (self.md, stack, v, v, v)),
+                     (sample_phase, (self.md, stack, v, v, 0.5, 0.5, 0.5))] + calls
         return calls
 
     def trace(self, film: Film, sample_base: int, spp: int, seed: int) -> None:
