@@ -177,6 +177,10 @@ class RenderSession:
             self.engine.report({"WARNING"}, f"Haze: render stopped after {samples} samples per pixel")
 
     def _render(self, result) -> None:
+        if self._renderer is None:
+            from renderer.workers import start_workers  # the standard library only: quick
+
+            start_workers(1)  # its start-up overlaps the export and this process's imports
         exported = export_validated(self.depsgraph, (self.width, self.height), exporter=self._exporter,
                                     on_start=lambda: self.engine.update_stats("", "Haze | Exporting scene"),
                                     on_warnings=self._report_warnings)

@@ -269,9 +269,9 @@ def shutdown_workers() -> None:
 
 
 def start_workers(n: int) -> None:
-    """Have n workers (starting them now, without waiting): call it early, so that their
-    start overlaps the caller's own imports and scene loading."""
-    pool.resize(n)
+    """Have at least n workers (starting them now, without waiting): call it early, so that
+    their start overlaps the caller's own imports and scene loading."""
+    pool.resize(max(n, len(pool.workers)))
 
 
 def worker_pids() -> list[int]:

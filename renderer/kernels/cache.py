@@ -37,6 +37,7 @@ from pathlib import Path
 
 import llvmlite
 import numba
+from numba.core import event
 from numba.core.caching import CacheImpl, _CacheLocator
 
 PACKAGE_DIR = Path(__file__).resolve().parents[1]  # the renderer package
@@ -111,9 +112,38 @@ class HazeCacheLocator(_CacheLocator):
 
 
 def install() -> None:
-    """Make numba place the renderer's kernels with HazeCacheLocator (before any is defined)."""
+    """Make numba place the renderer's kernels with HazeCacheLocator (before any is defined),
+    and log compiles where HAZE_COMPILE_LOG asks."""
     if HazeCacheLocator not in CacheImpl._locator_classes:
         CacheImpl._locator_classes.insert(0, HazeCacheLocator)
+    global _compile_log
+    path = os.environ.get(COMPILE_LOG_ENV)
+    if path and _compile_log is None:
+        _compile_log = CompileLog(path)
+        event.register("numba:compile", _compile_log)
+
+
+COMPILE_LOG_ENV = "HAZE_COMPILE_LOG"
+_compile_log = None
+
+
+class CompileLog(event.Listener):
+    """One line per function this process compiled (not loaded from the cache): process id,
+    function, argument types, tab-separated, appended to the file HAZE_COMPILE_LOG names.
+    Worker processes inherit the variable, so one file shows which process compiled what
+    (e.g. that two renders on a cold cache never compiled the same function twice)."""
+
+    def __init__(self, path: str) -> None:
+        self.path = path
+
+    def on_start(self, ev) -> None:
+        pass
+
+    def on_end(self, ev) -> None:
+        func = ev.data["dispatcher"].py_func
+        line = f"{os.getpid()}\t{func.__module__}.{func.__qualname__}\t{ev.data['args']}\n"
+        with open(self.path, "a", encoding="utf-8") as f:  # one short append: not interleaved
+            f.write(line)
 
 
 _held: dict[str, int] = {}  # locks this process holds, with their depth (re-entry is free)
