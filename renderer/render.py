@@ -81,7 +81,7 @@ def _validate(scene: Scene) -> None:
 
 def render_progressive(scene: Scene, workers: int = 1, target_error: float = 0.0,
                        validate: bool = True, on_compile: Callable[[list[str]], None] | None = None,
-                       in_process: bool | None = None) -> Iterator[Progress]:
+                       in_process: bool | None = None, cluster: str = "") -> Iterator[Progress]:
     """Render `scene`, yielding the image as units are merged (see YIELD_INTERVAL). Stops
     at scene.integrator.spp samples, at scene.integrator.time_limit seconds (if > 0) or
     once the estimated relMSE falls below target_error (if > 0). on_compile(kernel names)
@@ -90,7 +90,10 @@ def render_progressive(scene: Scene, workers: int = 1, target_error: float = 0.0
     in_process: trace in this process (True) or in the worker pool (False). By default
     (None) one worker without a time limit runs in this process, which starts fastest and
     lets tests observe the kernels; but a numba kernel cannot be interrupted there, so
-    neither Ctrl-C nor a time limit can stop a pathological scene. The pool enforces both."""
+    neither Ctrl-C nor a time limit can stop a pathological scene. The pool enforces both.
+
+    cluster: a Dask scheduler's address (tcp://HOST:8786) or "local" (a LocalCluster of
+    `workers` processes) renders there instead (renderer.cluster_render), to the same bits."""
     t0 = time.perf_counter()
     if validate:
         _validate(scene)
@@ -98,6 +101,10 @@ def render_progressive(scene: Scene, workers: int = 1, target_error: float = 0.0
     settings = scene.integrator
     film = Film(cs.width, cs.height)
     units = iter_units(cs.width, cs.height, settings.spp)
+    if cluster:
+        yield from _render_on_cluster(cluster, cs, settings, film, units, t0, target_error, workers,
+                                      on_compile)
+        return
     if in_process is None:
         in_process = workers <= 1 and settings.time_limit <= 0
     if in_process:
@@ -105,6 +112,18 @@ def render_progressive(scene: Scene, workers: int = 1, target_error: float = 0.0
     else:
         run = _PoolRender(cs, settings, film, units, t0, target_error, max(1, workers), on_compile)
         yield from run.frames()
+
+
+def _render_on_cluster(address: str, cs: CompiledScene, settings: IntegratorSettings, film: Film,
+                       units: Iterator[Unit], t0: float, target_error: float, workers: int,
+                       on_compile) -> Iterator[Progress]:
+    """Dask is imported only here: a render on this machine's pool never loads it."""
+    from .cluster import connect, wait_for_a_worker
+    from .cluster_render import ClusterRender
+
+    client = connect(address, max(1, workers))
+    wait_for_a_worker(client, address)
+    yield from ClusterRender(client, cs, settings, film, units, t0, target_error, on_compile).frames()
 
 
 def _target_reached(film: Film, target_error: float) -> bool:
