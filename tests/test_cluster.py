@@ -144,3 +144,52 @@ def test_an_unreachable_scheduler_fails_fast_and_names_itself():
 def test_a_cluster_address_without_a_protocol_is_refused():
     with pytest.raises(ClusterError, match="tcp://HOST:8786"):
         connect("example.org")
+
+
+ANIMATION_BODY = r'''
+import glob
+import bpy
+import bpy_helpers as H
+
+
+def main():
+    H.enable_dev_addon()
+    scene = bpy.context.scene
+    H.configure_haze(scene, 4, 2, seed=1, workers=2)
+    scene.haze.cluster = "local"  # F12 with a cluster set renders through it
+    scene.render.resolution_x = scene.render.resolution_y = 16
+    scene.render.resolution_percentage = 100
+    light = bpy.data.objects["Light"]
+    cube = bpy.data.objects["Cube"]
+    for frame, energy, angle in ((1, 300.0, 0.0), (2, 1000.0, 0.4), (3, 3000.0, 0.8)):
+        light.data.energy = energy
+        light.data.keyframe_insert("energy", frame=frame)
+        cube.rotation_euler[2] = angle
+        cube.keyframe_insert("rotation_euler", frame=frame)
+    scene.frame_start, scene.frame_end = 1, 3
+    settings = scene.render.image_settings
+    settings.file_format, settings.color_depth, settings.color_mode = "OPEN_EXR", "32", "RGB"
+    scene.render.filepath = os.path.join(os.getcwd(), "frame_")
+    bpy.ops.render.render(animation=True)
+    import renderer.cluster as cluster
+
+    workers = [len(cluster.worker_addresses(c)) for c in cluster._clients.values()]
+    return {"frames": sorted(glob.glob(os.path.join(os.getcwd(), "frame_*.exr"))), "cluster_workers": workers}
+'''
+
+
+@pytest.mark.bpy
+@pytest.mark.slow
+def test_a_headless_animation_on_a_local_cluster_writes_three_frames(tmp_path):
+    from bpy_helpers import run_blender, shared_numba_cache
+
+    from renderer.imageio import read_exr
+
+    run = run_blender(ANIMATION_BODY, tmp_path, timeout=900, numba_cache=shared_numba_cache())
+    assert run.returncode == 0 and run.result, run.describe()
+    assert run.result["cluster_workers"] == [2], "the frames did not render on one LocalCluster of 2"
+    paths = run.result["frames"]
+    assert [p.rsplit("_", 1)[1] for p in paths] == ["0001.exr", "0002.exr", "0003.exr"]
+    images = [read_exr(p) for p in paths]
+    assert all(img.shape == (16, 16, 3) and np.isfinite(img).all() and img.mean() > 0 for img in images)
+    assert not np.array_equal(images[0], images[1]) and not np.array_equal(images[1], images[2])
