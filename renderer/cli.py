@@ -200,6 +200,10 @@ def render_command(args) -> int:
             print("error: --denoise needs Open Image Denoise, which was not found (it comes with "
                   "Blender's bpy module; HAZE_OIDN_LIBRARY may name the library)", file=sys.stderr)
             return 2
+    if args.cluster:  # first: an unreachable scheduler is an error in seconds, before any loading
+        from .cluster import connect
+
+        connect(args.cluster, args.workers)
     scene, inputs = load_scene_and_inputs(args.scene)
     problem = _outputs_problem(args, inputs)
     if problem:
