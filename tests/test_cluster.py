@@ -23,7 +23,7 @@ import pytest
 from examples.scenes import cornell_box
 from renderer import cluster as cluster_module
 from renderer.cluster import LOCAL, ClusterError, connect
-from renderer.cluster_tasks import tracer_builds
+from renderer.cluster_tasks import TOPIC, tracer_builds
 from renderer.film import Film
 from renderer.render import Progress, render_progressive
 from renderer.scene import Scene
@@ -65,6 +65,8 @@ def test_two_cluster_workers_give_the_bits_of_one_process(client):
     last = frames(cornell_box(size=24, spp=64), workers=2, cluster=LOCAL)[-1]
     assert last.spp == 64 and not last.note
     assert_same_bits(last.film, reference)
+    # The workers said when their tracers were ready (the time limit pauses while they compile).
+    assert any(message[1] == "ready" for _, message in client.get_events(TOPIC))
     # Another seed of the same scene reuses every worker's tracer (one build per worker).
     builds = client.run(tracer_builds)
     assert len(builds) == 2
