@@ -150,6 +150,7 @@ def test_a_cluster_address_without_a_protocol_is_refused():
 
 ANIMATION_BODY = r'''
 import glob
+import time
 import bpy
 import bpy_helpers as H
 
@@ -176,13 +177,22 @@ def main():
     import renderer.cluster as cluster
 
     workers = [len(cluster.worker_addresses(c)) for c in cluster._clients.values()]
-    return {"frames": sorted(glob.glob(os.path.join(os.getcwd(), "frame_*.exr"))), "cluster_workers": workers}
+    # Render Properties > Performance > Test Cluster Connection, on a port nobody listens on.
+    scene.haze.cluster = "tcp://127.0.0.1:1"
+    t0 = time.perf_counter()
+    try:
+        bpy.ops.haze.test_cluster()
+        refused = ""
+    except RuntimeError as error:  # an operator's ERROR report raises in a background script
+        refused = str(error)
+    return {"frames": sorted(glob.glob(os.path.join(os.getcwd(), "frame_*.exr"))), "cluster_workers": workers,
+            "refused": refused, "refused_after": time.perf_counter() - t0}
 '''
 
 
 @pytest.mark.bpy
 @pytest.mark.slow
-def test_a_headless_animation_on_a_local_cluster_writes_three_frames(tmp_path):
+def test_a_headless_animation_on_a_local_cluster_writes_three_frames_and_the_test_button_refuses(tmp_path):
     from bpy_helpers import run_blender, shared_numba_cache
 
     from renderer.imageio import read_exr
@@ -190,6 +200,8 @@ def test_a_headless_animation_on_a_local_cluster_writes_three_frames(tmp_path):
     run = run_blender(ANIMATION_BODY, tmp_path, timeout=900, numba_cache=shared_numba_cache())
     assert run.returncode == 0 and run.result, run.describe()
     assert run.result["cluster_workers"] == [2], "the frames did not render on one LocalCluster of 2"
+    assert "cannot reach the Dask scheduler at tcp://127.0.0.1:1" in run.result["refused"]
+    assert run.result["refused_after"] < 10.0
     paths = run.result["frames"]
     assert [p.rsplit("_", 1)[1] for p in paths] == ["0001.exr", "0002.exr", "0003.exr"]
     images = [read_exr(p) for p in paths]
