@@ -114,14 +114,15 @@ class ClusterRender:
         return bool(self.note) or self.target_met or self.clock.left() <= 0
 
     def _submit(self, key: str, scene: Future) -> None:
-        from .cluster_tasks import trace_task
+        from .cluster_tasks import remote_task
 
+        task = remote_task()
         while len(self.in_flight) < IN_FLIGHT_PER_THREAD * self._threads():
             unit = heapq.heappop(self.retry) if self.retry else next(self.fresh, None)
             if unit is None:
                 return
             # Higher priority runs first: the earliest unit, so merges are never held up long.
-            future = self.client.submit(trace_task, key, scene, unit, self.settings.seed, pure=False,
+            future = self.client.submit(task, key, scene, tuple(unit), self.settings.seed, pure=False,
                                         priority=-unit.index)
             self._track(future, unit)
 

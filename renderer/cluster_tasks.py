@@ -30,6 +30,27 @@ _tracer: Tracer | None = None
 _builds = 0  # tracers built by this process
 
 
+# The function the client submits. The scheduler unpickles every task it is sent, so a
+# function pickled by reference (module and name) would need Haze installed beside the
+# scheduler too; this one is defined outside any importable module, so cloudpickle sends it
+# by value, with plain arguments, and it imports Haze only on the worker.
+_REMOTE_SOURCE = """
+def trace_remote(key, payload, unit, seed):
+    from renderer.cluster_tasks import trace_task
+    from renderer.units import Unit
+
+    return trace_task(key, payload, Unit(*unit), seed)
+"""
+
+
+def remote_task():
+    """trace_task as a function the scheduler can unpickle without Haze: (key, payload,
+    (index, first_sample, samples), seed) -> Film."""
+    namespace = {"__name__": "haze_remote_task"}  # not importable: pickled by value
+    exec(_REMOTE_SOURCE, namespace)
+    return namespace["trace_remote"]
+
+
 def trace_task(key: str, payload: bytes, unit: Unit, seed: int) -> Film:
     """One unit of the scene `key` (payload: its pickle) into a film of its own."""
     from .units import trace_unit

@@ -207,3 +207,63 @@ def test_a_headless_animation_on_a_local_cluster_writes_three_frames_and_the_tes
     images = [read_exr(p) for p in paths]
     assert all(img.shape == (16, 16, 3) and np.isfinite(img).all() and img.mean() > 0 for img in images)
     assert not np.array_equal(images[0], images[1]) and not np.array_equal(images[1], images[2])
+
+
+def test_a_render_without_a_cluster_never_imports_dask():
+    import subprocess
+    import sys
+
+    code = ("import sys; from examples.scenes import cornell_box; import renderer.cli; "
+            "from renderer.render import render; render(cornell_box(size=4, spp=1)); "
+            "print(sorted(m for m in sys.modules if m.split('.')[0] in ('dask', 'distributed')))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=600,
+                         cwd=os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip().splitlines()[-1] == "[]"
+
+
+@pytest.fixture
+def running_cluster(tmp_path):
+    """`dask scheduler` (Haze not importable there) and `dask worker` (the checkout on its path),
+    as on machines that are not this one."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    dask = str(Path(sys.executable).parent / "dask")
+    repo = str(Path(__file__).resolve().parents[1])
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+    address = f"tcp://127.0.0.1:{closed_port()}"
+    log = open(tmp_path / "cluster.log", "w")  # noqa: SIM115 - closed below
+    port = address.rsplit(":", 1)[1]
+    processes = [subprocess.Popen([dask, "scheduler", "--port", port, "--dashboard-address", ":0"],
+                                  cwd=tmp_path, env=env, stdout=log, stderr=log)]
+    processes.append(subprocess.Popen([dask, "worker", address, "--nthreads", "1", "--nworkers", "1",
+                                       "--no-dashboard"], cwd=tmp_path, env={**env, "PYTHONPATH": repo},
+                                      stdout=log, stderr=log))
+    try:
+        yield address
+    finally:
+        for process in reversed(processes):
+            process.terminate()
+            process.wait(timeout=30)
+        log.close()
+
+
+def test_a_running_cluster_elsewhere_gives_the_same_bits(running_cluster):
+    """The scheduler unpickles every task: the submitted function must not need Haze there."""
+    from renderer.cluster import wait_for_a_worker
+
+    client = None
+    deadline = time.monotonic() + 120  # the scheduler process may still be starting
+    while client is None:
+        try:
+            client = connect(running_cluster)
+        except ClusterError:
+            if time.monotonic() > deadline:
+                raise
+    wait_for_a_worker(client, running_cluster, timeout=120)
+    reference = frames(cornell_box(size=24, spp=64), workers=1, in_process=True)[-1].film
+    last = frames(cornell_box(size=24, spp=64), cluster=running_cluster)[-1]
+    assert last.spp == 64 and not last.note
+    assert_same_bits(last.film, reference)
