@@ -4,7 +4,7 @@ The units (renderer.units) are submitted as Dask tasks, earliest unit first and 
 IN_FLIGHT_PER_THREAD per worker thread at once (so a stop wastes little, and a worker
 never idles between two units). Each finished task's future lands in a queue (a done
 callback runs in the client's thread), and the main loop merges the films in unit order
-(renderer.render._UnitMerger): the image has the bits of a one-process render of the same
+(renderer.progress.UnitMerger): the image has the bits of a one-process render of the same
 seed, whatever the workers and wherever they run.
 
 The scene is scattered to every worker once per render (broadcast) and named by its hash;
@@ -25,16 +25,17 @@ import time
 from collections.abc import Iterator
 from typing import TYPE_CHECKING
 
+from .cluster_tasks import remote_task
 from .film import Film
-from .render import (
+from .progress import (
     STOP_GRACE,
+    Clock,
+    Pacer,
     Progress,
-    _Clock,
-    _Pacer,
-    _progress,
-    _target_reached,
-    _UnitMerger,
+    UnitMerger,
     announce_compile,
+    progress_now,
+    target_reached,
 )
 from .units import Unit
 from .workers import scene_payload
@@ -61,14 +62,15 @@ class ClusterRender:
         self.on_compile = on_compile or announce_compile
         self.announced = False
         self.compiling: set[str] = set()  # workers compiling kernels (the clock pauses)
-        self.merger = _UnitMerger(film)
-        self.clock = _Clock(settings, t0)
-        self.pacer = _Pacer()
+        self.merger = UnitMerger(film)
+        self.clock = Clock(settings, t0)
+        self.pacer = Pacer()
         self.in_flight: dict[str, tuple[Future, Unit]] = {}  # by task key
         self.finished: queue.Queue = queue.Queue()  # ("done", key) or ("event", message)
         self.threads, self.threads_seen_at = 1, -math.inf
         self.stop_at = math.inf
         self.target_met = False
+        self.task = remote_task()
         self.note = ""
 
     def frames(self) -> Iterator[Progress]:
@@ -83,7 +85,7 @@ class ClusterRender:
             # Show the finished units before the interrupt goes on to the caller.
             self._cancel()
             if self._collect(0.0) | self.merger.merge_the_rest() or self.pacer.pending:
-                yield self._progress()
+                yield self.progress_now()
             raise
         finally:
             self._cancel()  # closed by the caller (Esc in Blender), an error, or done
@@ -104,25 +106,23 @@ class ClusterRender:
                 break
             if self._collect(self._wait_time()) and self.pacer.merged():
                 # Checked when shown: the estimate reads the whole image.
-                self.target_met = _target_reached(self.film, self.target_error)
-                yield self._progress()
+                self.target_met = target_reached(self.film, self.target_error)
+                yield self.progress_now()
+        merged = self._collect(0.0)  # units that finished in the grace period are kept
         self._cancel()
-        if self.merger.merge_the_rest() or self.pacer.pending or self.note or not self.pacer.shown:
-            yield self._progress()
+        if merged | self.merger.merge_the_rest() or self.pacer.pending or self.note or not self.pacer.shown:
+            yield self.progress_now()
 
     def _stopping(self) -> bool:
         return bool(self.note) or self.target_met or self.clock.left() <= 0
 
     def _submit(self, key: str, scene: Future) -> None:
-        from .cluster_tasks import remote_task
-
-        task = remote_task()
         while len(self.in_flight) < IN_FLIGHT_PER_THREAD * self._threads():
             unit = heapq.heappop(self.retry) if self.retry else next(self.fresh, None)
             if unit is None:
                 return
             # Higher priority runs first: the earliest unit, so merges are never held up long.
-            future = self.client.submit(task, key, scene, tuple(unit), self.settings.seed, pure=False,
+            future = self.client.submit(self.task, key, scene, tuple(unit), self.settings.seed, pure=False,
                                         priority=-unit.index)
             self._track(future, unit)
 
@@ -195,5 +195,5 @@ class ClusterRender:
         if pending:
             self.client.cancel(pending)
 
-    def _progress(self) -> Progress:
-        return _progress(self.film, self.settings, self.t0, self.note)
+    def progress_now(self) -> Progress:
+        return progress_now(self.film, self.settings, self.t0, self.note)
