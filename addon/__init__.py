@@ -25,7 +25,8 @@ bl_info = {
     "description": "Volumetric path tracer (numpy, numba, Embree)",
 }
 
-MODULE_NAMES = ("properties", "preferences", "engine", "ui", "operators", "operators_volume")
+MODULE_NAMES = ("properties", "preferences", "engine", "ui", "operators", "operators_volume",
+                "operators_cluster")
 
 
 def _modules():
@@ -57,3 +58,6 @@ def stop_render_workers() -> None:
     render = sys.modules.get("renderer.render")
     if render is not None and hasattr(render, "shutdown_workers"):
         render.shutdown_workers()
+    cluster = sys.modules.get("renderer.cluster")  # connections and LocalClusters, if any
+    if cluster is not None and hasattr(cluster, "shutdown_clusters"):
+        cluster.shutdown_clusters()

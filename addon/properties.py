@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import bpy
-from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty
+from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty, StringProperty
 
 SAMPLING_ITEMS = [
     ("mis", "MIS", "Combine light sampling and BSDF/phase sampling (multiple importance sampling)"),
@@ -106,6 +106,13 @@ class HazeRenderSettings(bpy.types.PropertyGroup):
         default=0,
         min=0,
         soft_max=64,
+    )
+    cluster: StringProperty(
+        name="Cluster",
+        description="Render on a Dask cluster: a scheduler address such as tcp://HOST:8786 (its "
+        "workers need the same Haze installed), or 'local' for a Dask cluster of Workers processes "
+        "on this machine. Empty: this machine's own worker processes. Same image either way",
+        default="",
     )
 
 

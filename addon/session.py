@@ -197,7 +197,8 @@ class RenderSession:
         # numba kernel in another process (the pool's workers persist across renders).
         frames = render_progressive(exported.scene, workers=self._workers(),
                                     target_error=float(self.settings.target_error), validate=False,
-                                    on_compile=self._on_compile, in_process=False)
+                                    on_compile=self._on_compile, in_process=False,
+                                    cluster=str(getattr(self.settings, "cluster", "")).strip())
         try:
             self._consume(frames, result)
         finally:

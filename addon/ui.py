@@ -110,6 +110,8 @@ class HAZE_RENDER_PT_performance(HazeRenderPanel, bpy.types.Panel):
         layout.use_property_split = True
         layout.use_property_decorate = False
         layout.prop(context.scene.haze, "workers")
+        layout.prop(context.scene.haze, "cluster")
+        layout.operator("haze.test_cluster", icon="NETWORK_DRIVE")
 
 
 class HAZE_VIEWLAYER_PT_passes(HazeRenderPanel, bpy.types.Panel):

@@ -10,6 +10,7 @@ import threading
 import time
 from pathlib import Path
 
+from .cluster import ClusterError  # dask itself loads only for a --cluster render
 from .errors import SceneError
 
 # The exit status of a process ended by Ctrl-C (128 + SIGINT), as shells report it.
@@ -44,6 +45,9 @@ def _parser() -> argparse.ArgumentParser:
         help="stop once estimated relMSE <= this (0 = off)",
     )
     r.add_argument("--workers", type=int, default=os.cpu_count() or 1, help="processes (default: all cores)")
+    r.add_argument("--cluster", default="", metavar="ADDRESS|local",
+                   help="render on a running Dask cluster (tcp://HOST:8786), or 'local' for a Dask "
+                   "LocalCluster of --workers processes; the same image bits as without")
     r.add_argument("--no-png", action="store_true", help="do not write the PNG preview")
     r.add_argument("--denoise", action="store_true",
                    help="denoise the image with Open Image Denoise (Blender's library), guided by the "
@@ -196,6 +200,10 @@ def render_command(args) -> int:
             print("error: --denoise needs Open Image Denoise, which was not found (it comes with "
                   "Blender's bpy module; HAZE_OIDN_LIBRARY may name the library)", file=sys.stderr)
             return 2
+    if args.cluster:  # first: an unreachable scheduler is an error in seconds, before any loading
+        from .cluster import connect
+
+        connect(args.cluster, args.workers)
     scene, inputs = load_scene_and_inputs(args.scene)
     problem = _outputs_problem(args, inputs)
     if problem:
@@ -203,9 +211,10 @@ def render_command(args) -> int:
         return 2
     scene.film.aovs = bool(args.denoise)  # the denoiser's albedo and normal passes
     check_render_memory(scene.film, args.workers)
-    # Before numba loads here: the first worker's start overlaps this process's imports (the
-    # others start once it is heard from: renderer.render._PoolRender._pool_size).
-    start_workers(1)
+    if not args.cluster:
+        # Before numba loads here: the first worker's start overlaps this process's imports (the
+        # others start once it is heard from: renderer.render._PoolRender._pool_size).
+        start_workers(1)
     return _render_and_write(args, scene)
 
 
@@ -228,7 +237,7 @@ def _render_and_write(args, scene) -> int:
     ticker = CompileTicker()
     try:
         for last in render_progressive(scene, workers=args.workers, target_error=args.target_error,
-                                       on_compile=ticker.start, in_process=False):
+                                       on_compile=ticker.start, in_process=False, cluster=args.cluster):
             ticker.stop()
             line = _bar(last.spp, s.spp, last.elapsed, last.error_estimate)
             print(line, end="", file=sys.stderr, flush=True)
@@ -278,6 +287,9 @@ def main(argv: list[str] | None = None) -> int:
     except SceneError as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
+    except ClusterError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 1
     except FileNotFoundError as e:
         print(f"error: {e}", file=sys.stderr)
         return 2

@@ -27,16 +27,24 @@ from __future__ import annotations
 import heapq
 import math
 import os
-import sys
 import time
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass
 
 import numpy as np
 
 from .compile import CompiledScene, compile_scene
 from .film import Film
 from .integrator.wavefront import Tracer
+from .progress import (
+    STOP_GRACE,
+    Clock,
+    Pacer,
+    Progress,
+    UnitMerger,
+    announce_compile,
+    progress_now,
+    target_reached,
+)
 from .scene import IntegratorSettings, Scene
 from .units import Unit, iter_units, plan_units, trace_unit
 from .workers import (
@@ -53,24 +61,7 @@ from .workers import (
 __all__ = ["Progress", "Unit", "default_workers", "iter_units", "plan_units", "render", "render_progressive",
            "shutdown_workers", "start_workers", "worker_pids"]
 
-# Progress is yielded at most this often (and always for the first and the last merge):
-# the image and its error estimate cost about a tenth of a unit's tracing at 256x256.
-YIELD_INTERVAL = 0.5
-# After a stop (time limit, target error), units in flight get this long to finish before
-# their workers are terminated: long enough for a normal unit, short enough for "about a second".
-STOP_GRACE = 0.5
 MAX_ATTEMPTS = 3  # a unit whose worker died this many times is given up (the render stops)
-
-
-@dataclass
-class Progress:
-    image: np.ndarray  # (H, W, 3) float32 linear RGB, row 0 at the top
-    spp: int  # samples per pixel so far
-    spp_target: int
-    elapsed: float  # seconds since the render started (scene compile included)
-    error_estimate: float  # estimated relMSE of `image` (nan before 2 spp)
-    film: Film
-    note: str = ""  # what went wrong, when the render stopped short for another reason than asked
 
 
 def _validate(scene: Scene) -> None:
@@ -81,7 +72,7 @@ def _validate(scene: Scene) -> None:
 
 def render_progressive(scene: Scene, workers: int = 1, target_error: float = 0.0,
                        validate: bool = True, on_compile: Callable[[list[str]], None] | None = None,
-                       in_process: bool | None = None) -> Iterator[Progress]:
+                       in_process: bool | None = None, cluster: str = "") -> Iterator[Progress]:
     """Render `scene`, yielding the image as units are merged (see YIELD_INTERVAL). Stops
     at scene.integrator.spp samples, at scene.integrator.time_limit seconds (if > 0) or
     once the estimated relMSE falls below target_error (if > 0). on_compile(kernel names)
@@ -90,7 +81,10 @@ def render_progressive(scene: Scene, workers: int = 1, target_error: float = 0.0
     in_process: trace in this process (True) or in the worker pool (False). By default
     (None) one worker without a time limit runs in this process, which starts fastest and
     lets tests observe the kernels; but a numba kernel cannot be interrupted there, so
-    neither Ctrl-C nor a time limit can stop a pathological scene. The pool enforces both."""
+    neither Ctrl-C nor a time limit can stop a pathological scene. The pool enforces both.
+
+    cluster: a Dask scheduler's address (tcp://HOST:8786) or "local" (a LocalCluster of
+    `workers` processes) renders there instead (renderer.cluster_render), to the same bits."""
     t0 = time.perf_counter()
     if validate:
         _validate(scene)
@@ -98,6 +92,10 @@ def render_progressive(scene: Scene, workers: int = 1, target_error: float = 0.0
     settings = scene.integrator
     film = Film(cs.width, cs.height)
     units = iter_units(cs.width, cs.height, settings.spp)
+    if cluster:
+        yield from _render_on_cluster(cluster, cs, settings, film, units, t0, target_error, workers,
+                                      on_compile)
+        return
     if in_process is None:
         in_process = workers <= 1 and settings.time_limit <= 0
     if in_process:
@@ -107,102 +105,32 @@ def render_progressive(scene: Scene, workers: int = 1, target_error: float = 0.0
         yield from run.frames()
 
 
-def _target_reached(film: Film, target_error: float) -> bool:
-    if target_error > 0 and film.spp >= 4:
-        err = film.rel_mse_estimate()
-        return not math.isnan(err) and err <= target_error
-    return False
+def _render_on_cluster(address: str, cs: CompiledScene, settings: IntegratorSettings, film: Film,
+                       units: Iterator[Unit], t0: float, target_error: float, workers: int,
+                       on_compile) -> Iterator[Progress]:
+    """Dask is imported only here: a render on this machine's pool never loads it."""
+    from .cluster import connect, wait_for_a_worker
+    from .cluster_render import ClusterRender
 
-
-def _progress(film: Film, settings: IntegratorSettings, t0: float, note: str = "") -> Progress:
-    return Progress(film.image(), film.spp, settings.spp, time.perf_counter() - t0, film.rel_mse_estimate(),
-                    film, note)
-
-
-class _Pacer:
-    """When to show progress: at the first merge, then at most every YIELD_INTERVAL."""
-
-    def __init__(self) -> None:
-        self.last = -math.inf
-        self.pending = False  # merged since the last progress shown
-        self.shown = False  # whether the caller has had an image
-
-    def merged(self) -> bool:
-        """Record a merge; True if progress is due now."""
-        self.pending = True
-        if time.perf_counter() - self.last < YIELD_INTERVAL:
-            return False
-        self.last = time.perf_counter()
-        self.pending = False
-        self.shown = True
-        return True
+    client = connect(address, max(1, workers))
+    wait_for_a_worker(client, address)
+    yield from ClusterRender(client, cs, settings, film, units, t0, target_error, on_compile).frames()
 
 
 def _render_here(cs: CompiledScene, settings: IntegratorSettings, film: Film, units: Iterator[Unit],
                  t0: float, target_error: float, on_compile) -> Iterator[Progress]:
     tracer = Tracer(cs, settings, on_compile)
-    pacer = _Pacer()
+    pacer = Pacer()
     for unit in units:
         film.add(trace_unit(tracer, unit, settings.seed))
         if pacer.merged():
-            yield _progress(film, settings, t0)
-            if _target_reached(film, target_error):  # checked when shown: it reads the whole image
+            yield progress_now(film, settings, t0)
+            if target_reached(film, target_error):  # checked when shown: it reads the whole image
                 return
         if settings.time_limit > 0 and time.perf_counter() - t0 >= settings.time_limit:
             break
     if pacer.pending:
-        yield _progress(film, settings, t0)
-
-
-class _UnitMerger:
-    """Adds finished units to the film in unit order; later ones wait in a buffer."""
-
-    def __init__(self, film: Film):
-        self.film = film
-        self.next = 0  # index of the next unit to merge
-        self.waiting: dict[int, Film] = {}
-
-    def add(self, index: int, part: Film) -> bool:
-        """Buffer a finished unit; True if the film changed (its predecessors were all in)."""
-        self.waiting[index] = part
-        merged = False
-        while self.next in self.waiting:
-            self.film.add(self.waiting.pop(self.next))
-            self.next += 1
-            merged = True
-        return merged
-
-    def merge_the_rest(self) -> bool:
-        """On an early stop: merge every finished unit, in unit order, gaps and all."""
-        merged = bool(self.waiting)
-        for index in sorted(self.waiting):
-            self.film.add(self.waiting.pop(index))
-        return merged
-
-
-def announce_compile(names: list[str]) -> None:
-    """What a process says before it compiles kernels (once per machine and Haze build)."""
-    print(f"haze: compiling kernels (first run only): {', '.join(names)}", file=sys.stderr, flush=True)
-
-
-class _Clock:
-    """The time limit, paused while a worker compiles kernels (first run only): a limit of
-    seconds must not stop a render before its first sample, or the compile forever."""
-
-    def __init__(self, settings: IntegratorSettings, t0: float):
-        self.deadline = t0 + settings.time_limit if settings.time_limit > 0 else math.inf
-        self.paused_at: float | None = None
-
-    def pause(self, compiling: bool) -> None:
-        now = time.perf_counter()
-        if compiling and self.paused_at is None:
-            self.paused_at = now
-        elif not compiling and self.paused_at is not None:
-            self.deadline += now - self.paused_at
-            self.paused_at = None
-
-    def left(self) -> float:
-        return math.inf if self.paused_at is not None else self.deadline - time.perf_counter()
+        yield progress_now(film, settings, t0)
 
 
 class _PoolRender:
@@ -218,12 +146,12 @@ class _PoolRender:
         self.heard_from_a_worker = False  # see _pool_size
         self.on_compile = on_compile or announce_compile
         self.announced = False
-        self.merger = _UnitMerger(film)
-        self.clock = _Clock(settings, t0)
+        self.merger = UnitMerger(film)
+        self.clock = Clock(settings, t0)
         self.attempts: dict[int, int] = {}
         self.stop_at = math.inf  # when units still in flight are given up
         self.note = ""
-        self.pacer = _Pacer()
+        self.pacer = Pacer()
         self.target_met = False
         self.pool = pool  # the shared workers; frames() borrows them
 
@@ -235,7 +163,7 @@ class _PoolRender:
                 # Show the finished units before the interrupt goes on to the caller.
                 self.pool.terminate_busy()
                 if self.merger.merge_the_rest() or self.pacer.pending:
-                    yield self._progress()
+                    yield self.progress_now()
                 raise
             except GeneratorExit:  # closed by the caller (Esc in Blender): no more images
                 self.pool.drain(STOP_GRACE)
@@ -266,12 +194,12 @@ class _PoolRender:
                 break
             if self._handle(self.pool.events(self._wait_time())) and self.pacer.merged():
                 # Checked when shown: the estimate reads the whole image.
-                self.target_met = _target_reached(self.film, self.target_error)
-                yield self._progress()
+                self.target_met = target_reached(self.film, self.target_error)
+                yield self.progress_now()
         # The pool is refilled by the next render (lazily: an exiting CLI must not wait for
         # new processes to start).
         if self.merger.merge_the_rest() or self.pacer.pending or self.note or not self.pacer.shown:
-            yield self._progress()
+            yield self.progress_now()
 
     def _give_up_units_in_flight(self) -> None:
         if self.film.spp == 0 and not self.merger.waiting and not self.note:
@@ -336,8 +264,8 @@ class _PoolRender:
             return
         heapq.heappush(self.retry, unit)
 
-    def _progress(self) -> Progress:
-        return _progress(self.film, self.settings, self.t0, self.note)
+    def progress_now(self) -> Progress:
+        return progress_now(self.film, self.settings, self.t0, self.note)
 
 
 def render(scene: Scene, workers: int = 1) -> np.ndarray:

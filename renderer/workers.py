@@ -45,14 +45,19 @@ class Shipment(NamedTuple):
     path: str
 
 
+def scene_payload(cs: CompiledScene, settings: IntegratorSettings) -> tuple[str, bytes]:
+    """(hash, pickle) of what a worker needs to build the tracer: the same key, the same tracer.
+    Fields a tracer does not read are normalised, so another seed, spp or time limit of the
+    same scene does not make the workers rebuild their tracers."""
+    tracer_settings = dataclasses.replace(settings, seed=0, spp=1, time_limit=0.0)
+    data = pickle.dumps((cs, tracer_settings), protocol=pickle.HIGHEST_PROTOCOL)
+    return hashlib.blake2b(data, digest_size=16).hexdigest(), data
+
+
 @contextmanager
 def shipped(cs: CompiledScene, settings: IntegratorSettings) -> Iterator[Shipment]:
     """The scene pickled once to a temporary file for the workers, removed after the render."""
-    # Fields a tracer does not read are normalised, so another seed, spp or time limit of
-    # the same scene does not make the workers rebuild their tracers.
-    tracer_settings = dataclasses.replace(settings, seed=0, spp=1, time_limit=0.0)
-    data = pickle.dumps((cs, tracer_settings), protocol=pickle.HIGHEST_PROTOCOL)
-    key = hashlib.blake2b(data, digest_size=16).hexdigest()
+    key, data = scene_payload(cs, settings)
     fd, path = tempfile.mkstemp(prefix=f"haze-scene-{key[:8]}-", suffix=".pkl")
     try:
         with os.fdopen(fd, "wb") as f:

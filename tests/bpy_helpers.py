@@ -31,7 +31,11 @@ EXAMPLES = REPO / "examples"
 PYTHON = sys.executable
 
 # Packages the installed extension must bring itself (never taken from the test venv).
-BUNDLED_MODULES = ("numba", "llvmlite", "embreex", "OpenEXR", "Imath", "openexr", "renderer")
+BUNDLED_MODULES = ("numba", "llvmlite", "embreex", "OpenEXR", "Imath", "openexr", "renderer",
+                   # cluster rendering (packaging, zipp and importlib_metadata stay: others use them)
+                   "dask", "distributed", "click", "cloudpickle", "fsspec", "jinja2", "lazy_importer",
+                   "locket", "partd", "sortedcontainers", "tblib", "toolz", "zict", "msgpack", "psutil",
+                   "yaml", "_yaml", "pyyaml", "tornado", "markupsafe")
 
 PRELUDE = """\
 import json, os, sys

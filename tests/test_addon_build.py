@@ -24,6 +24,12 @@ from renderer.imageio import read_exr
 
 MANIFEST = tomllib.loads((REPO / "blender_manifest.toml").read_text())
 THIRD_PARTY = {"embreex": "embreex", "openexr": "OpenEXR", "numba": "numba", "llvmlite": "llvmlite"}
+# Cluster rendering: dask, distributed and their dependencies (wheel name -> distribution).
+CLUSTER = {name: name for name in (
+    "dask", "distributed", "click", "cloudpickle", "fsspec", "importlib_metadata", "jinja2", "lazy_importer",
+    "locket", "packaging", "partd", "sortedcontainers", "tblib", "toolz", "zict", "zipp",
+    "msgpack", "psutil", "pyyaml", "tornado", "markupsafe")}
+BUNDLED = THIRD_PARTY | CLUSTER
 
 
 def load_build_tool():
@@ -51,16 +57,17 @@ def test_bundled_wheels_are_the_tested_versions_for_every_platform():
     found: dict[tuple[str, str], str] = {}
     for name in wheel_names():
         distribution, version = name.split("-")[:2]
-        platform = build_tool.wheel_platform(name)
+        platforms = build_tool.wheel_platforms(name)
         if distribution == build_tool.RENDERER_DIST:
-            assert platform is None and version == MANIFEST["version"]
+            assert platforms is None and version == MANIFEST["version"]
             continue
-        assert distribution in THIRD_PARTY, f"unexpected bundled wheel {name} (numpy comes with Blender)"
-        assert "cp311" in name
-        assert version == importlib.metadata.version(THIRD_PARTY[distribution]), name
-        assert (distribution, platform) not in found, f"two {distribution} wheels for {platform}"
-        found[(distribution, platform)] = name
-    expected = {(d, p) for d in THIRD_PARTY for p in MANIFEST["platforms"]}
+        assert distribution in BUNDLED, f"unexpected bundled wheel {name} (numpy comes with Blender)"
+        assert platforms is None or "cp311" in name or "abi3" in name, name
+        assert version == importlib.metadata.version(BUNDLED[distribution]), name
+        for platform in platforms or MANIFEST["platforms"]:  # a pure-Python wheel serves all
+            assert (distribution, platform) not in found, f"two {distribution} wheels for {platform}"
+            found[(distribution, platform)] = name
+    expected = {(d, p) for d in BUNDLED for p in MANIFEST["platforms"]}
     assert set(found) == expected
 
 
@@ -69,7 +76,8 @@ def test_staged_manifest_keeps_only_the_chosen_platforms():
     wheels = build_tool.selected_wheels(MANIFEST, ["linux-x64"])
     staged = tomllib.loads(build_tool.staged_manifest(text, ["linux-x64"], [f"./wheels/{w}" for w in wheels]))
     assert staged["platforms"] == ["linux-x64"]
-    assert len(staged["wheels"]) == 5 and all("win" not in w and "macos" not in w for w in staged["wheels"])
+    assert len(staged["wheels"]) == 1 + len(BUNDLED)  # the renderer's and one of each dependency
+    assert all("win" not in w and "macos" not in w for w in staged["wheels"])
     assert {k: v for k, v in staged.items() if k not in ("platforms", "wheels")} == \
         {k: v for k, v in MANIFEST.items() if k not in ("platforms", "wheels")}
 
@@ -112,7 +120,9 @@ def main():
     path = os.path.join(os.getcwd(), "installed.exr")
     H.render_exr(scene, path)
     import embreex, numba, llvmlite, OpenEXR, renderer, renderer.render
-    modules = {m.__name__: m.__file__ for m in (embreex, numba, llvmlite, OpenEXR, renderer)}
+    import dask, distributed, msgpack, psutil, tornado, yaml  # cluster rendering
+    bundled = (embreex, numba, llvmlite, OpenEXR, renderer, dask, distributed, msgpack, psutil, tornado, yaml)
+    modules = {m.__name__: m.__file__ for m in bundled}
     package = next(name for name in enabled)
     extension_dir = os.path.dirname(sys.modules[package].__file__)
     cache = os.environ.get("NUMBA_CACHE_DIR", "")

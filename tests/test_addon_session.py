@@ -81,7 +81,7 @@ class FakeEngine:
 
 
 def settings(**overrides):
-    values = dict(samples=3, time_limit=0.0, target_error=0.0, workers=1)
+    values = dict(samples=3, time_limit=0.0, target_error=0.0, workers=1, cluster="")
     values.update(overrides)
     return SimpleNamespace(**values)
 
@@ -154,11 +154,18 @@ def test_complete_render_reports_progress_and_ends_the_result_once():
     image = shown_image(engine)
     assert np.allclose(image[..., :3], pass_image(3)) and np.all(image[..., 3] == 1)
     assert renderer.closed
-    assert set(renderer.kwargs) == {"workers", "target_error", "validate", "on_compile", "in_process"}
+    assert set(renderer.kwargs) == {"workers", "target_error", "validate", "on_compile", "in_process",
+                                    "cluster"}
+    assert renderer.kwargs["cluster"] == ""  # this machine's workers unless a cluster is set
     assert renderer.kwargs["in_process"] is False  # the pool: Esc can stop any scene
     assert renderer.kwargs["workers"] == 1 and renderer.kwargs["target_error"] == 0.0
     assert not [r for r in engine.reports if r[0] == "ERROR"]
     assert COMPILING_TEXT not in engine.stats  # warm cache: nothing to say
+
+
+def test_a_cluster_set_in_the_settings_renders_there():
+    run(FakeEngine(), renderer := FakeRenderer(passes=1), cluster=" tcp://farm:8786 ")
+    assert renderer.kwargs["cluster"] == "tcp://farm:8786"
 
 
 def test_cold_cache_shows_the_compile_message_before_the_first_pass():

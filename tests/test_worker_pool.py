@@ -23,6 +23,7 @@ from renderer import render as render_module
 from renderer.compile import compile_scene
 from renderer.film import Film
 from renderer.integrator.wavefront import Tracer
+from renderer.progress import UnitMerger
 from renderer.render import Progress, render_progressive, worker_pids
 from renderer.scene import Scene
 from renderer.units import UNIT_PATHS, plan_units
@@ -81,7 +82,7 @@ def test_units_start_small_and_stay_near_unit_paths():
 
 def test_units_are_merged_in_order_and_the_rest_on_a_stop():
     merged = Film(2, 1)
-    merger = render_module._UnitMerger(merged)
+    merger = UnitMerger(merged)
     part = [Film(2, 1) for _ in range(4)]
     for i, p in enumerate(part):
         p.sum[:] = 10.0 ** i

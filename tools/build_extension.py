@@ -47,17 +47,20 @@ def extension_cli() -> Path:
     return matches[-1]
 
 
-def wheel_platform(filename: str) -> str | None:
-    """Blender platform of a wheel from its tag (None = pure Python, any platform)."""
+def wheel_platforms(filename: str) -> frozenset[str] | None:
+    """Blender platforms of a wheel from its tag (None = pure Python, any platform). A macOS
+    universal2 wheel (tornado's only one) serves both macOS platforms."""
     tag = filename.removesuffix(".whl").split("-")[-1]
     if tag == "any":
         return None
     if "manylinux" in tag or "linux" in tag:
-        return "linux-arm64" if "aarch64" in tag else "linux-x64"
+        return frozenset({"linux-arm64" if "aarch64" in tag else "linux-x64"})
     if tag.startswith("win"):
-        return "windows-arm64" if "arm64" in tag else "windows-x64"
+        return frozenset({"windows-arm64" if "arm64" in tag else "windows-x64"})
     if tag.startswith("macosx"):
-        return "macos-arm64" if "arm64" in tag else "macos-x64"
+        if tag.endswith("universal2"):
+            return frozenset({"macos-arm64", "macos-x64"})
+        return frozenset({"macos-arm64" if "arm64" in tag else "macos-x64"})
     raise SystemExit(f"unknown platform tag in wheel {filename}")
 
 
@@ -130,7 +133,7 @@ def staged_manifest(text: str, platforms: list[str], wheels: list[str]) -> str:
 
 def selected_wheels(manifest: dict, platforms: list[str]) -> list[str]:
     names = [Path(w).name for w in manifest["wheels"]]
-    return [n for n in names if wheel_platform(n) is None or wheel_platform(n) in platforms]
+    return [n for n in names if wheel_platforms(n) is None or wheel_platforms(n) & set(platforms)]
 
 
 def stage(platforms: list[str]) -> Path:
