@@ -177,7 +177,7 @@ class RenderSession:
             self.engine.report({"WARNING"}, f"Haze: render stopped after {samples} samples per pixel")
 
     def _render(self, result) -> None:
-        if self._renderer is None:
+        if self._renderer is None and not self._cluster():
             from renderer.workers import start_workers  # the standard library only: quick
 
             start_workers(1)  # its start-up overlaps the export and this process's imports
@@ -198,7 +198,7 @@ class RenderSession:
         frames = render_progressive(exported.scene, workers=self._workers(),
                                     target_error=float(self.settings.target_error), validate=False,
                                     on_compile=self._on_compile, in_process=False,
-                                    cluster=str(getattr(self.settings, "cluster", "")).strip())
+                                    cluster=self._cluster())
         try:
             self._consume(frames, result)
         finally:
@@ -206,6 +206,10 @@ class RenderSession:
         note = getattr(self.latest, "note", "")
         if note:
             self.engine.report({"WARNING"}, f"Haze: {note}")
+
+    def _cluster(self) -> str:
+        """The Dask scheduler's address, "local", or "" for this machine's worker pool."""
+        return str(getattr(self.settings, "cluster", "")).strip()
 
     def _check_memory(self, scene) -> None:
         """Refuse a render the machine has no memory for, before it starts (not a crash halfway)."""
