@@ -3,9 +3,10 @@ pixels (file, packed and generated images alike) without changing the image or i
 
 Cycles shades in scene-linear Rec. 709. Byte images hold their colour space's encoded
 values in `pixels`; float images hold scene-linear values already (Blender converts them
-on load). So only a byte image whose colour space is sRGB needs decoding here; Non-Color,
-Linear Rec.709 (and Linear) are used as they are. Other colour spaces are decoded as sRGB
-(byte) or used as they are (float), with a warning.
+on load). A byte sRGB image keeps its encoded values and is decoded after interpolation,
+as Cycles does with 8-bit sRGB images; Non-Color, Linear Rec.709 (and Linear) are used as
+they are. Other colour spaces are decoded as sRGB (byte) or used as they are (float),
+with a warning.
 """
 
 from __future__ import annotations
@@ -17,12 +18,6 @@ from renderer.shading.program import ImageTexture
 from .messages import Messages, node_subject
 
 RAW_SPACES = {"Non-Color", "Linear Rec.709", "Linear", "Linear CIE-XYZ E", "Raw"}
-
-
-def srgb_to_linear(c: np.ndarray) -> np.ndarray:
-    """The sRGB transfer function's inverse (IEC 61966-2-1), in float32."""
-    c = c.astype(np.float32)
-    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4).astype(np.float32)
 
 
 def read_pixels(image) -> np.ndarray:
@@ -60,7 +55,8 @@ class ImageLibrary:
             pixels = np.array([[[1.0, 0.0, 1.0, 1.0]]], np.float32)
         else:
             pixels = self._linear(read_pixels(image), image, subject)
-        self.textures[name] = ImageTexture(name, np.ascontiguousarray(pixels))
+        srgb = not image.is_float and image.colorspace_settings.name not in RAW_SPACES
+        self.textures[name] = ImageTexture(name, np.ascontiguousarray(pixels), srgb)
         return name
 
     @staticmethod
@@ -81,8 +77,7 @@ class ImageLibrary:
             return pixels
         if space != "sRGB":
             self.messages.warn(subject, f"colour space {space} is decoded as sRGB")
-        pixels[..., :3] = srgb_to_linear(pixels[..., :3])
-        return pixels
+        return pixels  # decoded after interpolation (ImageTexture.srgb)
 
     def list(self) -> list[ImageTexture]:
         return list(self.textures.values())

@@ -18,8 +18,7 @@ from typing import Protocol
 
 import numpy as np
 
-from renderer.shading.names import MATH_OPS, VECTOR_OPS
-
+from .closure_bindings import capped_color, color_binds, mix_by_program, roughness_bind
 from .node_values import BACK, FRONT, SIDE_NAMES, ValueGraph
 
 
@@ -157,17 +156,6 @@ def combine_mix(graph: ClosureGraph, node, scope: tuple) -> list[Term]:
     return scale_terms(first, 1.0 - factor) + scale_terms(second, factor)
 
 
-def mix_by_program(graph: ClosureGraph, node, scope: tuple, factor) -> list[Term]:
-    """A Mix Shader whose factor varies: each side's weights are scaled per shading point
-    by the program's clamped factor f (second input) and 1 - f (first input)."""
-    p = graph.program
-    f = p.emit("clamp", 1, factor, p.const(0.0), p.const(1.0))
-    g = p.emit("math", 1, p.const(1.0), f, p.const(0.0), i0=MATH_OPS.index("SUBTRACT"))
-    first = [replace(t, scales=t.scales + (g,)) for t in graph.closure(node.inputs[1], scope)]
-    second = [replace(t, scales=t.scales + (f,)) for t in graph.closure(node.inputs[2], scope)]
-    return first + second
-
-
 def combine_add(graph: ClosureGraph, node, scope: tuple) -> list[Term]:
     return graph.closure(node.inputs[0], scope) + graph.closure(node.inputs[1], scope)
 
@@ -192,27 +180,6 @@ def warn_ignored_distribution(read: Inputs, node) -> None:
     distribution = getattr(node, "distribution", "GGX")
     if distribution not in {"GGX", "MULTI_GGX"}:
         read.warn(f"{distribution} microfacets are rendered as GGX")
-
-
-def color_binds(read: Inputs, name: str = "Color") -> tuple:
-    reg = read.varying(name)
-    return () if reg is None else (("color", reg),)
-
-
-def roughness_bind(read: Inputs, name: str = "Roughness") -> tuple:
-    reg = read.varying(name)
-    return () if reg is None else (("roughness", reg),)
-
-
-def capped_color(read: Inputs, reg, exponent: float = 1.0):
-    """min(colour, 1) ** exponent computed by the program."""
-    p = read.program
-    one = p.const((1.0, 1.0, 1.0))
-    capped = p.emit("vector_math", 3, reg, one, one, p.const(1.0), i0=VECTOR_OPS.index("MINIMUM"))
-    if exponent == 1.0:
-        return capped
-    e = p.const((exponent,) * 3)
-    return p.emit("vector_math", 3, capped, e, one, p.const(1.0), i0=VECTOR_OPS.index("POWER"))
 
 
 def shader_diffuse(read: Inputs) -> list[Term]:

@@ -34,7 +34,8 @@ UV_ACTIVE = "uv:"  # the mesh's active render UV map (resolved per mesh at expor
 
 VARYING_SOURCES = {
     "ShaderNodeTexCoord", "ShaderNodeUVMap", "ShaderNodeNewGeometry", "ShaderNodeTexImage",
-    "ShaderNodeTexChecker", "ShaderNodeTexGradient",
+    "ShaderNodeTexChecker", "ShaderNodeTexGradient", "ShaderNodeTexNoise", "ShaderNodeFresnel",
+    "ShaderNodeLayerWeight",
 }
 
 
@@ -177,18 +178,48 @@ def color_ramp(graph, node, output, scope) -> Reg:
 
 
 def separate(graph, node, output, scope) -> Reg | None:
-    if getattr(node, "mode", "RGB") != "RGB":
+    mode = getattr(node, "mode", "RGB")
+    if mode not in ("RGB", "HSV"):
         return None
     v = graph.operand(node.inputs[0], scope)
+    if mode == "HSV":
+        v = graph.program.emit("hsv_convert", 3, v, i0=0)
     k = [o.identifier for o in node.outputs].index(output.identifier)
     return graph.program.component(v, k)
 
 
 def combine(graph, node, output, scope) -> Reg | None:
-    if getattr(node, "mode", "RGB") != "RGB":
+    mode = getattr(node, "mode", "RGB")
+    if mode not in ("RGB", "HSV"):
         return None
     a, b, c = (graph.operand(node.inputs[k], scope) for k in range(3))
-    return graph.program.emit("combine", 3, a, b, c)
+    out = graph.program.emit("combine", 3, a, b, c)
+    return graph.program.emit("hsv_convert", 3, out, i0=1) if mode == "HSV" else out
+
+
+def hue_saturation(graph, node, output, scope) -> Reg:
+    p = graph.program
+    block = p.alloc(4)  # hue, saturation, value, factor: consecutive registers
+    for k, name in enumerate(("Hue", "Saturation", "Value", "Fac")):
+        p.emit("copy", 1, graph.operand(node.inputs[name], scope), i0=1, dst=Reg(block.index + k, 1))
+    return p.emit("hsv", 3, graph.operand(node.inputs["Color"], scope), block)
+
+
+def _normal_input(graph, node, scope) -> Reg:
+    socket = node.inputs["Normal"]
+    if graph.link_source(socket) is not None:
+        return graph.operand(socket, scope)
+    return graph.program.emit("normal", 3)
+
+
+def fresnel(graph, node, output, scope) -> Reg:
+    return graph.program.emit("fresnel", 1, graph.operand(node.inputs["IOR"], scope),
+                              _normal_input(graph, node, scope))
+
+
+def layer_weight(graph, node, output, scope) -> Reg:
+    return graph.program.emit("layer_weight", 1, graph.operand(node.inputs["Blend"], scope),
+                              _normal_input(graph, node, scope), i0=int(output.identifier == "Facing"))
 
 
 def invert(graph, node, output, scope) -> Reg:
@@ -214,6 +245,19 @@ def map_range(graph, node, output, scope) -> Reg | None:
         p.emit("copy", 1, graph.operand(node.inputs[1 + k], scope), i0=1, dst=Reg(block.index + k, 1))
     return p.emit("map_range", 1, graph.operand(node.inputs[0], scope), block,
                   i0=MAP_RANGE_TYPES.index(node.interpolation_type), i1=int(node.clamp))
+
+
+def noise(graph, node, output, scope) -> Reg | None:
+    """Noise Texture, 3D fBM (the default); other dimensions and types are not compiled."""
+    if node.noise_dimensions != "3D" or node.noise_type != "FBM":
+        return None
+    p = graph.program
+    v = _texture_vector(graph, node, scope, "generated")
+    block = p.alloc(5)  # scale, detail, roughness, lacunarity, distortion: consecutive registers
+    for k, name in enumerate(("Scale", "Detail", "Roughness", "Lacunarity", "Distortion")):
+        p.emit("copy", 1, graph.operand(by_id(node, name), scope), i0=1, dst=Reg(block.index + k, 1))
+    out = p.emit("noise", 4, v, block, i0=int(node.normalize))
+    return Reg(out.index, 1) if output.identifier == "Fac" else Reg(out.index + 1, 3)
 
 
 def gamma(graph, node, output, scope) -> Reg:
@@ -249,6 +293,10 @@ PROGRAM_HANDLERS: dict[str, Callable] = {
     "ShaderNodeClamp": clamp,
     "ShaderNodeMapRange": map_range,
     "ShaderNodeGamma": gamma,
+    "ShaderNodeTexNoise": noise,
+    "ShaderNodeHueSaturation": hue_saturation,
+    "ShaderNodeFresnel": fresnel,
+    "ShaderNodeLayerWeight": layer_weight,
     "ShaderNodeBrightContrast": bright_contrast,
 }
 MATH_ADD = MATH["ADD"]

@@ -15,7 +15,9 @@ def _evaluate(st, m, tri, bary, x, n, regs, first, width, out):
     for k in range(tri.shape[0]):
         pos = (float(x[k, 0]), float(x[k, 1]), float(x[k, 2]))
         nrm = (float(n[k, 0]), float(n[k, 1]), float(n[k, 2]))
-        run_program(st, m, regs, tri[k], float(bary[k, 0]), float(bary[k, 1]), float(bary[k, 2]), pos, nrm)
+        # As in Cycles' baking, the view direction is the normal (front face).
+        run_program(st, m, regs, tri[k], float(bary[k, 0]), float(bary[k, 1]), float(bary[k, 2]), pos, nrm,
+                    nrm, False)
         for c in range(width):
             out[k, c] = regs[first + c]
 

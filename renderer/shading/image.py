@@ -1,8 +1,9 @@
 """Image Texture lookups as Cycles' CPU image sampler does them: texel centres at
 half-integers, Closest or bilinear (Linear; Cubic is exported as Linear, warned), and the
 four extension modes. Images are rows of one texel table `texels` (P, 4) float32 RGBA;
-`images` (N, 3) int32 gives each image's first texel, width and height (row-major, row 0
-at v = 0)."""
+`images` (N, 4) int32 gives each image's first texel, width, height (row-major, row 0
+at v = 0) and whether its texels are sRGB-encoded (decoded after interpolation, as
+Cycles' COMPRESS_AS_SRGB 8-bit images)."""
 
 import math
 
@@ -42,8 +43,23 @@ def _texel(texels, first, width, ix, iy):
 
 
 @inline_kernel
+def _srgb_to_linear(c):
+    if c < 0.04045:
+        return 0.0 if c < 0.0 else c * (1.0 / 12.92)
+    return ((c + 0.055) * (1.0 / 1.055)) ** 2.4
+
+
+@inline_kernel
 def image_lookup(texels, images, index, u, v, linear, ext):
-    """RGBA of image `index` at texture coordinates (u, v)."""
+    """RGBA of image `index` at texture coordinates (u, v), scene-linear."""
+    c = _interpolate(texels, images, index, u, v, linear, ext)
+    if images[index, 3] == 0:
+        return c
+    return (_srgb_to_linear(c[0]), _srgb_to_linear(c[1]), _srgb_to_linear(c[2]), c[3])
+
+
+@inline_kernel
+def _interpolate(texels, images, index, u, v, linear, ext):
     first, width, height = images[index, 0], images[index, 1], images[index, 2]
     if ext == EXT_CLIP and (u < 0.0 or v < 0.0 or u > 1.0 or v > 1.0):
         return _ZERO4

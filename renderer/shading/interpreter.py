@@ -3,16 +3,20 @@ point and leaves its results in the register file `regs`.
 
 `st` is the scene's shading table tuple (table.py): (progs, code, init, data, binds,
 corner, texels, images). A point is given by its triangle p, barycentrics (b0, b1, b2),
-world position x and shading normal n; corner attributes are interpolated with the
-barycentrics Embree returns (hit = b0 v0 + b1 v1 + b2 v2).
+world position x, shading normal n (facing the side the ray came from, as Cycles' sd->N),
+the direction wi toward where the ray came from, and whether the back face was hit;
+corner attributes are interpolated with the barycentrics Embree returns
+(hit = b0 v0 + b1 v1 + b2 v2).
 """
 
 import math
 
 from renderer.kernels import inline_kernel
 
+from .color import fresnel, hsv_to_rgb, hue_saturation_value, layer_weight, rgb_to_hsv
 from .image import image_lookup
 from .math_ops import math_op, mix_color, vector_op
+from .noise import noise_texture_3d
 from .program import I_A, I_B, I_C, I_D, I_DST, I_OP, I_P0, I_P1, I_P2, OP
 from .table import P_CODE, P_INIT, P_NCODE, P_NREGS
 from .textures import checker, gradient, mapping, ramp_lookup
@@ -22,7 +26,8 @@ MATH, VECTOR_MATH, MIX, MIX_FLOAT = OP["math"], OP["vector_math"], OP["mix"], OP
 MAPPING, CHECKER, IMAGE, RAMP, CURVE = OP["mapping"], OP["checker"], OP["image"], OP["ramp"], OP["curve"]
 COMBINE, COPY, INVERT, RGB_TO_BW = OP["combine"], OP["copy"], OP["invert"], OP["rgb_to_bw"]
 CLAMP, GRADIENT, GAMMA, BRIGHT_CONTRAST = OP["clamp"], OP["gradient"], OP["gamma"], OP["bright_contrast"]
-MAP_RANGE = OP["map_range"]
+MAP_RANGE, NOISE, HSV, HSV_CONVERT = OP["map_range"], OP["noise"], OP["hsv"], OP["hsv_convert"]
+FRESNEL, LAYER_WEIGHT = OP["fresnel"], OP["layer_weight"]
 
 
 @inline_kernel
@@ -51,7 +56,7 @@ def _attribute(corner, p, b0, b1, b2, column, width):
 
 
 @inline_kernel
-def run_program(st, m, regs, p, b0, b1, b2, x, n):  # noqa: C901 - the interpreter's dispatch
+def run_program(st, m, regs, p, b0, b1, b2, x, n, wi, back):  # noqa: C901 - the interpreter's dispatch
     progs, code, init, data, _, corner, texels, images = st
     r0 = progs[m, P_INIT]
     for k in range(progs[m, P_NREGS]):
@@ -144,6 +149,26 @@ def run_program(st, m, regs, p, b0, b1, b2, x, n):  # noqa: C901 - the interpret
             kb = regs[b] - regs[c] * 0.5
             for ch in range(3):
                 regs[dst + ch] = max(ka * regs[a + ch] + kb, 0.0)
+        elif op == HSV:
+            _put3(regs, dst, hue_saturation_value(_v(regs, a), float(regs[b]), float(regs[b + 1]),
+                                                  float(regs[b + 2]), float(regs[b + 3])))
+        elif op == HSV_CONVERT:
+            _put3(regs, dst, hsv_to_rgb(_v(regs, a)) if ins[I_P0] else rgb_to_hsv(_v(regs, a)))
+        elif op == FRESNEL:
+            nn = _v(regs, b)
+            regs[dst] = fresnel(float(regs[a]), wi[0] * nn[0] + wi[1] * nn[1] + wi[2] * nn[2], back)
+        elif op == LAYER_WEIGHT:
+            nn = _v(regs, b)
+            regs[dst] = layer_weight(float(regs[a]), wi[0] * nn[0] + wi[1] * nn[1] + wi[2] * nn[2], back,
+                                     ins[I_P0] != 0)
+        elif op == NOISE:
+            q = _v(regs, a)
+            s = float(regs[b])
+            value, col = noise_texture_3d(q[0] * s, q[1] * s, q[2] * s, float(regs[b + 1]),
+                                          float(regs[b + 2]), float(regs[b + 3]), float(regs[b + 4]),
+                                          ins[I_P0] != 0)
+            regs[dst] = value
+            _put3(regs, dst + 1, col)
         elif op == MAP_RANGE:
             regs[dst] = _map_range(float(regs[a]), float(regs[b]), float(regs[b + 1]), float(regs[b + 2]),
                                    float(regs[b + 3]), float(regs[b + 4]), ins[I_P0], ins[I_P1] != 0)

@@ -45,15 +45,17 @@ OPCODES = (
     "invert",      # dst(3) = mix(colour b, 1 - b, factor a)
     "rgb_to_bw",   # dst = Rec. 709 luminance of a
     "clamp",       # dst = clamp(a, b, c); i0 = 0 min-max, 1 range
-    "map_range",   # dst = Map Range (float) of a from [b, c] to [d, e]; i0 type, i1 clamp, steps at data[i2]
+    "map_range",   # dst = Map Range (float) of a; b..b+4 = from min, from max, to min, to max, steps;
+                   # i0 type (names.MAP_RANGE_TYPES), i1 clamp
     "gradient",    # dst = Gradient texture type i0 of vector a (factor; the colour is the same)
     "gamma",       # dst(3) = colour a ^ gamma b
     "bright_contrast",  # dst(3) = Bright/Contrast of colour a, bright b, contrast c
-    "hsv",         # dst(3) = Hue/Saturation/Value: hue a, sat b, val c, factor d, colour e
-    "separate_hsv",  # dst(3) = (h, s, v) of colour a
-    "combine_hsv",   # dst(3) = colour of (h a, s b, v c)
-    "noise",       # dst factor, dst+1..3 colour: Noise texture (noise.py)
-    "white_noise",  # dst value, dst+1..3 colour: White Noise, i0 dimensions, vector a, w b
+    "hsv",         # dst(3) = Hue/Saturation/Value of colour a: b..b+3 = hue, saturation, value, factor
+    "hsv_convert",  # dst(3) = colour a to HSV (i0 0) or HSV to RGB (i0 1)
+    "fresnel",     # dst = Fresnel of IOR a with normal b (3), the view direction and the face side
+    "layer_weight",  # dst = Layer Weight of blend a with normal b: i0 0 Fresnel, 1 Facing
+    "noise",       # dst factor, dst+1..3 colour: Noise (3D fBM) of vector a; b..b+4 = scale,
+                   # detail, roughness, lacunarity, distortion; i0 normalize
 )
 OP = {name: code for code, name in enumerate(OPCODES)}
 
@@ -68,11 +70,13 @@ EXTENSIONS = ("repeat", "extend", "clip", "mirror")
 
 @dataclass
 class ImageTexture:
-    """Pixels of one image as Cycles samples them: scene-linear (colour spaces converted at
-    export), straight alpha, row 0 at the bottom (v = 0), as Blender stores them."""
+    """Pixels of one image as Cycles samples them: straight alpha, row 0 at the bottom
+    (v = 0), as Blender stores them; scene-linear, or with `srgb` sRGB-encoded values that
+    are decoded after interpolation (Cycles keeps 8-bit sRGB images so: COMPRESS_AS_SRGB)."""
 
     name: str
     pixels: np.ndarray  # (H, W, 4) float32
+    srgb: bool = False
 
 
 @dataclass

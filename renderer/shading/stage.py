@@ -83,8 +83,12 @@ def shade_programs(n, ps, prim, bu, bv, geo, st, mt, regs, override, max_lobes, 
         b2 = float(bv[i])
         b0 = 1.0 - b1 - b2
         x = madd(madd(load3(geo.v0, p), load3(geo.e1, p), b1), load3(geo.e2, p), b2)
-        sn = _shading_normal(geo, p, b0, b1, b2, load3(geo.ng, p))
-        run_program(st, m, regs, p, b0, b1, b2, x, sn)
+        ng = load3(geo.ng, p)
+        d = load3(ps.d, i)
+        back = dot(d, ng) > 0.0
+        sn = _shading_normal(geo, p, b0, b1, b2, ng)
+        # Cycles' sd->N faces the side the ray came from.
+        run_program(st, m, regs, p, b0, b1, b2, x, neg(sn) if back else sn, neg(d), back)
         row = n_mats + i
         first = n_lobes + i * max_lobes
         start = mats[m, M_FIRST]

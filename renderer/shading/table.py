@@ -10,7 +10,7 @@ ShadingTables.arrays is the tuple the interpreter takes (interpreter.run_program
     binds   int32 (B, BIND.size)
     corner  float32 (T, 3, A)      corner attributes of every triangle (A columns, >= 1)
     texels  float32 (P, 4)         every image's RGBA texels
-    images  int32 (N, 3)           per image: first texel, width, height
+    images  int32 (N, 4)           per image: first texel, width, height, sRGB-encoded (0/1)
 """
 
 from __future__ import annotations
@@ -91,8 +91,8 @@ def build_shading_tables(materials, meshes, images, triangles: int) -> ShadingTa
     texels = [np.asarray(im.pixels, np.float32).reshape(-1, 4) for im in images]
     texels = texels or [np.zeros((1, 4), np.float32)]
     firsts = np.cumsum([0] + [t.shape[0] for t in texels])[:-1]
-    image_rows = np.array([(f, im.pixels.shape[1], im.pixels.shape[0]) for f, im in zip(firsts, images)]
-                          or np.zeros((1, 3)), np.int32).reshape(-1, 3)
+    image_rows = np.array([(f, im.pixels.shape[1], im.pixels.shape[0], int(im.srgb))
+                           for f, im in zip(firsts, images)] or np.zeros((1, 4)), np.int32).reshape(-1, 4)
     data.append(np.zeros(1, np.float32))  # never empty
     arrays = (progs, np.concatenate(code), np.concatenate(init), np.concatenate(data), np.concatenate(binds),
               corner, np.ascontiguousarray(np.concatenate(texels)), image_rows)

@@ -62,6 +62,11 @@ def checker(p):
 @inline_kernel
 def gradient(kind, p):
     x, y, z = p
+    return min(max(_gradient(kind, x, y, z), 0.0), 1.0)  # svm_node_tex_gradient saturates
+
+
+@inline_kernel
+def _gradient(kind, x, y, z):
     if kind == 0:
         return x
     if kind == 1:
