@@ -9,7 +9,8 @@ Cycles' float32 trigonometry and pow differ from double precision).
 A textured scene: Haze and Cycles agree within noise (bpy_helpers.assert_agree), with an
 Image Texture (Blender-generated colour grid, sRGB bytes), a Checker driving Principled
 Base Color (single-scatter GGX), a Gradient through Map Range driving Roughness, and a Mix
-Shader whose factor is a Color Ramp of a Gradient. The same scene exported with the
+Shader whose factor is a Color Ramp of a Gradient, the other side coloured by a (byte, per
+vertex) colour attribute. The same scene exported with the
 export operator renders through the CLI to the same image as F12.
 """
 
@@ -46,9 +47,14 @@ SIZE = {BAKE_SIZE}
 def plane():
     scene = C.clear_scene()
     obj = H.new_object("Plane", [(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)], [(0, 1, 2, 3)])
+    corners = [(0, 0), (1, 0), (1, 1), (0, 1)]
     uv = obj.data.uv_layers.new(name="UVMap")
-    for loop, (u, v) in zip(obj.data.loops, [(0, 0), (1, 0), (1, 1), (0, 1)]):
+    for loop, (u, v) in zip(obj.data.loops, corners):
         uv.data[loop.index].uv = (u, v)
+    # Created after the UVs are written: a new attribute invalidates references to the others.
+    col = obj.data.color_attributes.new("Col", "FLOAT_COLOR", "CORNER")
+    for loop, (u, v) in zip(obj.data.loops, corners):
+        col.data[loop.index].color = (u, v, 0.5, 1.0)  # affine over the plane, as UVs
     return scene, obj
 
 
@@ -196,6 +202,12 @@ def case_nodes(tree, name):
             node.inputs["Blend"].default_value = 0.3
         link(unit.outputs["Vector"], node.inputs["Normal"])
         return node.outputs["Facing" if name == "layer_facing" else 0]
+    if name == "attribute":
+        node = n("ShaderNodeAttribute")
+        node.attribute_name = "Col"
+        return node.outputs["Fac"]
+    if name == "color_attribute":
+        return n("ShaderNodeVertexColor").outputs["Color"]  # the render colour attribute
     if name == "uv":
         return texture_vector(tree, "UV")
     raise ValueError(name)
@@ -255,7 +267,9 @@ def haze_values(material, emission, uv):
     # attributes are affine over the plane, so barycentrics (1-u-v, u, v) give any texel.
     corners = np.array([[0, 0], [1, 0], [0, 1]], np.float32)
     obj_pos = np.concatenate([corners * 2 - 1, np.zeros((3, 1), np.float32)], axis=1)
-    attributes = [CornerAttribute("uv:", corners[None]), CornerAttribute("object", obj_pos[None])]
+    col = np.concatenate([corners, np.full((3, 1), 0.5, np.float32)], axis=1)
+    attributes = [CornerAttribute("uv:", corners[None]), CornerAttribute("object", obj_pos[None]),
+                  CornerAttribute("attr:Col", col[None]), CornerAttribute("attr:", col[None])]
     mesh = Mesh("t", obj_pos, np.array([[0, 1, 2]], np.int32), ["m"], attributes=attributes)
     m = Material("m", lobes=[Lobe("diffuse")], program=program)
     tables = build_shading_tables([m], [mesh], images.list(), 1)
@@ -293,7 +307,8 @@ def main():
 CASES = (
     ["checker_uv", "checker_object", "map_range", "image", "image_closest"]
     + [f"noise_{k}" for k in ("fbm", "detail", "distortion", "color", "raw")]
-    + ["hsv", "separate_hsv", "combine_hsv", "fresnel", "layer_fresnel", "layer_facing"]
+    + ["hsv", "separate_hsv", "combine_hsv", "fresnel", "layer_fresnel", "layer_facing", "attribute",
+       "color_attribute"]
     + [f"mapping_{k}" for k in ("point", "texture", "vector", "normal")]
     + [f"gradient_{k}" for k in ("linear", "quadratic", "easing", "diagonal", "radial", "quadratic_sphere",
                                  "spherical")]
@@ -382,7 +397,8 @@ def floor_material():
 
 
 def wall_material():
-    """Diffuse of a colour-grid image, mixed with a red diffuse by a ramp of a gradient."""
+    """Diffuse of a colour-grid image, mixed with a diffuse of the colour attribute by a ramp
+    of a gradient."""
     material, tree, out = node_material("Wall")
     n, link = tree.nodes.new, tree.links.new
     image = bpy.data.images.new("Grid", 64, 64, alpha=False, float_buffer=False)
@@ -391,8 +407,8 @@ def wall_material():
     tex.image = image
     textured = n("ShaderNodeBsdfDiffuse")
     link(tex.outputs["Color"], textured.inputs["Color"])
-    red = n("ShaderNodeBsdfDiffuse")
-    red.inputs["Color"].default_value = (0.7, 0.1, 0.1, 1)
+    red = n("ShaderNodeBsdfDiffuse")  # coloured by the mesh's colour attribute
+    link(n("ShaderNodeVertexColor").outputs["Color"], red.inputs["Color"])
     gradient = n("ShaderNodeTexGradient")
     coords = n("ShaderNodeTexCoord")
     link(coords.outputs["UV"], gradient.inputs["Vector"])
@@ -413,7 +429,10 @@ def main():
     scene = C.clear_scene()
     H.world_color(scene, (0.35, 0.4, 0.45), 1.0)
     uv_quad("Floor", [(-3, -3, 0), (3, -3, 0), (3, 3, 0), (-3, 3, 0)], floor_material())
-    uv_quad("Wall", [(-3, 1.5, 0), (3, 1.5, 0), (3, 1.5, 3), (-3, 1.5, 3)], wall_material())
+    wall = uv_quad("Wall", [(-3, 1.5, 0), (3, 1.5, 0), (3, 1.5, 3), (-3, 1.5, 3)], wall_material())
+    colors = wall.data.color_attributes.new("Col", "BYTE_COLOR", "POINT")
+    for k, c in enumerate([(0.7, 0.1, 0.1), (0.1, 0.7, 0.1), (0.1, 0.1, 0.7), (0.6, 0.6, 0.2)]):
+        colors.data[k].color = (*c, 1.0)
     H.add_light("SUN", "Sun", (0.0, 0.0, 5.0), (40.0, 0.0, 30.0), energy=2.5, angle=math.radians(4.0))
     C.add_camera(scene, (0.0, -4.5, 2.0), (72.0, 0.0, 0.0), lens=30.0)
     scene.render.resolution_x = scene.render.resolution_y = SIZE

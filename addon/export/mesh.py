@@ -62,6 +62,8 @@ def corner_attribute(mesh, name: str, corners: np.ndarray, positions: np.ndarray
         if layer is None:
             return None
         return read_array(layer.uv, "vector", len(mesh.loops), 2, np.float32)[corners]
+    if name.startswith("attr:"):
+        return named_attribute(mesh, name[5:], corners, topology)
     local = positions[topology]
     if name == "object":
         return local
@@ -72,6 +74,39 @@ def corner_attribute(mesh, name: str, corners: np.ndarray, positions: np.ndarray
         size = np.where(size != 0.0, size, np.float32(1.0))
         return (local - (location - size)) / (2.0 * size)
     return None
+
+
+ATTRIBUTE_FIELDS = {"FLOAT_COLOR": ("color", 4), "BYTE_COLOR": ("color", 4), "FLOAT_VECTOR": ("vector", 3),
+                    "FLOAT2": ("vector", 2), "FLOAT": ("value", 1), "INT": ("value", 1),
+                    "BOOLEAN": ("value", 1)}
+
+
+def named_attribute(mesh, name: str, corners: np.ndarray, topology: np.ndarray):
+    """(T, 3, 3) values of a mesh attribute at the triangles' corners (an empty name: the
+    render colour attribute), from its domain; colours scene-linear (Blender's `color`),
+    scalars repeated over three components as Cycles reads them. None when missing."""
+    if not name:
+        index = mesh.color_attributes.render_color_index
+        attribute = mesh.color_attributes[index] if 0 <= index < len(mesh.color_attributes) else None
+    else:
+        attribute = mesh.attributes.get(name)
+    if attribute is None or attribute.data_type not in ATTRIBUTE_FIELDS or \
+            attribute.domain not in ("POINT", "CORNER", "FACE"):
+        return None
+    field_name, width = ATTRIBUTE_FIELDS[attribute.data_type]
+    values = read_array(attribute.data, field_name, len(attribute.data), width, np.float32).reshape(-1, width)
+    if attribute.domain == "CORNER":
+        per_corner = values[corners]
+    elif attribute.domain == "POINT":
+        per_corner = values[topology]
+    else:
+        faces = read_array(mesh.loop_triangle_polygons, "value", len(corners), 1, np.int32)
+        per_corner = np.repeat(values[faces][:, None, :], 3, axis=1)
+    if width == 1:
+        return np.repeat(per_corner, 3, axis=2)
+    out = np.zeros(per_corner.shape[:2] + (3,), np.float32)
+    out[..., :min(width, 3)] = per_corner[..., :3]
+    return out
 
 
 def read_geometry(mesh, attributes: tuple[str, ...] = ()) -> LocalGeometry:

@@ -35,7 +35,7 @@ UV_ACTIVE = "uv:"  # the mesh's active render UV map (resolved per mesh at expor
 VARYING_SOURCES = {
     "ShaderNodeTexCoord", "ShaderNodeUVMap", "ShaderNodeNewGeometry", "ShaderNodeTexImage",
     "ShaderNodeTexChecker", "ShaderNodeTexGradient", "ShaderNodeTexNoise", "ShaderNodeFresnel",
-    "ShaderNodeLayerWeight",
+    "ShaderNodeLayerWeight", "ShaderNodeAttribute", "ShaderNodeVertexColor",
 }
 
 
@@ -78,6 +78,25 @@ def geometry(graph, node, output, scope) -> Reg | None:
     if output.identifier == "Normal":
         return graph.program.emit("normal", 3)
     return None
+
+
+def attribute(graph, node, output, scope) -> Reg | None:
+    """Attribute node (Geometry type) and Color Attribute: a mesh attribute by name, read per
+    corner ("attr:<name>"; an empty name is the mesh's render colour attribute)."""
+    if node.bl_idname == "ShaderNodeAttribute":
+        if node.attribute_type != "GEOMETRY":
+            return None
+        name = node.attribute_name
+    else:
+        name = node.layer_name
+    if output.identifier == "Alpha":
+        return None
+    value = graph.program.attribute("attr:" + name, 3)
+    if output.identifier != "Fac":
+        return value
+    total = graph.program.component_sum(value)  # Cycles' Fac of a colour: its average
+    return graph.program.emit("math", 1, total, graph.program.const(1.0 / 3.0), graph.program.const(0.0),
+                              i0=MATH["MULTIPLY"])
 
 
 def math_node(graph, node, output, scope) -> Reg:
@@ -276,6 +295,8 @@ PROGRAM_HANDLERS: dict[str, Callable] = {
     "ShaderNodeUVMap": uv_map,
     "ShaderNodeNewGeometry": geometry,
     "ShaderNodeMath": math_node,
+    "ShaderNodeAttribute": attribute,
+    "ShaderNodeVertexColor": attribute,
     "ShaderNodeVectorMath": vector_math,
     "ShaderNodeMix": mix,
     "ShaderNodeMixRGB": mix_rgb,
