@@ -19,9 +19,20 @@ def mix_by_program(graph: ClosureGraph, node, scope: tuple, factor) -> list:
     p = graph.program
     f = p.emit("clamp", 1, factor, p.const(0.0), p.const(1.0))
     g = p.emit("math", 1, p.const(1.0), f, p.const(0.0), i0=MATH_OPS.index("SUBTRACT"))
-    first = [replace(t, scales=t.scales + (g,)) for t in graph.closure(node.inputs[1], scope)]
-    second = [replace(t, scales=t.scales + (f,)) for t in graph.closure(node.inputs[2], scope)]
+    # Emission cannot vary (the light table is constant): it takes the socket's own value.
+    f0 = min(max(float(graph.unlinked_value(node.inputs[0], 1)[0, 0]), 0.0), 1.0)
+    first = [_scaled(t, g, 1.0 - f0) for t in graph.closure(node.inputs[1], scope)]
+    second = [_scaled(t, f, f0) for t in graph.closure(node.inputs[2], scope)]
+    if any(t.kind == "emission" for t in first + second):
+        graph.warn_node(node, "emission cannot vary over a surface yet: it is mixed by the Fac "
+                              "socket's own value")
     return first + second
+
+
+def _scaled(term, reg, constant: float):
+    if term.kind == "emission":
+        return replace(term, weight=term.weight * constant)
+    return replace(term, scales=term.scales + (reg,))
 
 
 def color_binds(read: Inputs, name: str = "Color") -> tuple:

@@ -96,8 +96,6 @@ def surface_material(name: str, terms: list[Term], messages: Messages, program=N
     subject = material_subject(name)
     if any(term.kind in VOLUME_KINDS for term in terms):
         messages.warn(subject, "a volume shader connected to the Surface output is ignored (as in Cycles)")
-    if any(term.kind == "emission" and term.scales for term in terms):
-        messages.warn(subject, "emission mixed by a texture uses the factor's unlinked value")
     lobe_terms = [t for t in terms if t.kind in LOBE_KINDS and np.any(t.weight != 0.0)]
     lobes = [lobe_from_term(t) for t in lobe_terms]
     emission, emission_sides = choose_emission(*emission_per_side(terms), subject, messages)
@@ -172,7 +170,9 @@ def convert_material(blender_material, messages: Messages,
     graph = ShaderGraph(subject, messages, images)
     if graph.link_source(output.inputs["Displacement"]) is not None:
         messages.warn(subject, "displacement is not supported and is ignored")
+    graph.programs = False  # media are homogeneous here: no program reaches a Volume output
     volume_terms = as_volume_terms(graph.closure(output.inputs["Volume"]))
+    graph.programs = images is not None
     medium = volume_medium(medium_name(name), volume_terms, messages, subject)
     if graph.link_source(output.inputs["Surface"]) is None and medium is not None:
         return MaterialExport(Material(name), medium)  # invisible boundary of the medium

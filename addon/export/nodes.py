@@ -41,6 +41,8 @@ class ShaderGraph:
         # Shader programs: what varies over the surface (textures...), compiled per node.
         self.program = ProgramBuilder()
         self.images = images  # images.ImageLibrary, or None: no Image Texture is compiled
+        # Whether inputs may compile to programs (material surfaces; worlds and volumes not yet).
+        self.programs = images is not None
         self._varying: dict[tuple, bool] = {}
         self._registers: dict[tuple, Reg | None] = {}
 
@@ -155,7 +157,7 @@ class ShaderGraph:
         """The register of a varying input (converted to the socket's type), or None when
         the input is constant or cannot be compiled (then input_value folds it, warning)."""
         source = self.link_source(socket)
-        if source is None or not self.is_varying(source[0], scope):
+        if not self.programs or source is None or not self.is_varying(source[0], scope):
             return None
         node, output = source
         if node.bl_idname == "NodeReroute":
