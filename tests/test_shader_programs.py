@@ -8,7 +8,8 @@ Cycles' float32 trigonometry and pow differ from double precision).
 
 A textured scene: Haze and Cycles agree within noise (bpy_helpers.assert_agree), with an
 Image Texture (Blender-generated colour grid, sRGB bytes), a Checker driving Principled
-Base Color (single-scatter GGX), a Gradient through Map Range driving Roughness, and a Mix
+Base Color and another Metallic (single-scatter GGX), a Gradient through Map Range driving
+Roughness, and a Mix
 Shader whose factor is a Color Ramp of a Gradient, the other side coloured by a (byte, per
 vertex) colour attribute. The same scene exported with the
 export operator renders through the CLI to the same image as F12.
@@ -372,7 +373,8 @@ def node_material(name):
 
 
 def floor_material():
-    """Principled: Base Color from a Checker on UVs, Roughness from a Gradient via Map Range."""
+    """Principled: Base Color from a Checker on UVs, Roughness from a Gradient via Map Range,
+    Metallic from a coarser Checker."""
     material, tree, out = node_material("Floor")
     n, link = tree.nodes.new, tree.links.new
     bsdf = n("ShaderNodeBsdfPrincipled")
@@ -392,6 +394,10 @@ def floor_material():
     ranged.inputs["To Max"].default_value = 0.8
     link(gradient.outputs["Fac"], ranged.inputs["Value"])
     link(ranged.outputs["Result"], bsdf.inputs["Roughness"])
+    metal = n("ShaderNodeTexChecker")  # metal squares on a coarser grid
+    metal.inputs["Scale"].default_value = 2.0
+    link(coords.outputs["UV"], metal.inputs["Vector"])
+    link(metal.outputs["Fac"], bsdf.inputs["Metallic"])
     link(bsdf.outputs["BSDF"], out.inputs["Surface"])
     return material
 

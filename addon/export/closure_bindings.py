@@ -16,9 +16,7 @@ Inputs = ClosureGraph = Any
 def mix_by_program(graph: ClosureGraph, node, scope: tuple, factor) -> list:
     """A Mix Shader whose factor varies: each side's weights are scaled per shading point
     by the program's clamped factor f (second input) and 1 - f (first input)."""
-    p = graph.program
-    f = p.emit("clamp", 1, factor, p.const(0.0), p.const(1.0))
-    g = p.emit("math", 1, p.const(1.0), f, p.const(0.0), i0=MATH_OPS.index("SUBTRACT"))
+    f, g = factor_pair(graph.program, factor)
     # Emission cannot vary (the light table is constant): it takes the socket's own value.
     f0 = min(max(float(graph.unlinked_value(node.inputs[0], 1)[0, 0]), 0.0), 1.0)
     first = [_scaled(t, g, 1.0 - f0) for t in graph.closure(node.inputs[1], scope)]
@@ -27,6 +25,12 @@ def mix_by_program(graph: ClosureGraph, node, scope: tuple, factor) -> list:
         graph.warn_node(node, "emission cannot vary over a surface yet: it is mixed by the Fac "
                               "socket's own value")
     return first + second
+
+
+def factor_pair(p, factor) -> tuple:
+    """Registers of clamp(factor, 0, 1) and 1 - that (a mix's two weights)."""
+    f = p.emit("clamp", 1, factor, p.const(0.0), p.const(1.0))
+    return f, p.emit("math", 1, p.const(1.0), f, p.const(0.0), i0=MATH_OPS.index("SUBTRACT"))
 
 
 def _scaled(term, reg, constant: float):

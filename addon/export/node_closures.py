@@ -18,7 +18,7 @@ from typing import Protocol
 
 import numpy as np
 
-from .closure_bindings import capped_color, color_binds, mix_by_program, roughness_bind
+from .closure_bindings import capped_color, color_binds, factor_pair, mix_by_program, roughness_bind
 from .node_values import BACK, FRONT, SIDE_NAMES, ValueGraph
 
 
@@ -296,6 +296,7 @@ def shader_principled(read: Inputs) -> list[Term]:
     if ignored:
         read.warn("ignored inputs: " + ", ".join(ignored))
     base_reg, rough = read.varying("Base Color"), roughness_bind(read)
+    metal_reg = read.varying("Metallic")
     base = np.maximum(read("Base Color"), 0.0)
     metallic, alpha = saturate(read("Metallic")), saturate(read("Alpha"))
     roughness, transmission = saturate(read("Roughness")), saturate(read("Transmission Weight"))
@@ -308,26 +309,31 @@ def shader_principled(read: Inputs) -> list[Term]:
     emission = np.asarray(read("Emission Color")) * read("Emission Strength")
     if np.any(emission != 0.0):
         terms.append(Term("emission", np.broadcast_to(emission * weight, (3,)).astype(np.float64)))
-    if metallic > 0.0:
+    under = ()  # weight scales of the layers under the metal when Metallic varies
+    if metallic > 0.0 or metal_reg is not None:
         binds = rough + (() if base_reg is None else (("color", capped_color(read, base_reg)),))
         kind = "rough_conductor" if rough else reflection_kind(roughness)
-        terms.append(Term(kind, np.full(3, weight * metallic),
+        metal_weight, over = weight * metallic, ()
+        if metal_reg is not None:  # the program weighs the metal by m and what is under by 1 - m
+            (m, rest), metal_weight = factor_pair(read.program, metal_reg), weight
+            over, under = (m,), (rest,)
+        terms.append(Term(kind, np.full(3, metal_weight),
                           color=rgb(np.minimum(base, 1.0)), roughness=roughness, fresnel="f82",
-                          tint=rgb(np.clip(read("Specular Tint"), 0.0, 1.0)), binds=binds))
-        weight *= 1.0 - metallic
+                          tint=rgb(np.clip(read("Specular Tint"), 0.0, 1.0)), binds=binds, scales=over))
+        weight *= 1.0 if metal_reg is not None else 1.0 - metallic
     if transmission > 0.0 and weight > 0.0:
         if roughness > 0.0:
             read.warn(f"rough transmission (Roughness {roughness:g}) is rendered as smooth glass")
         binds = () if base_reg is None else (("color", capped_color(read, base_reg, 0.5)),)
         terms.append(Term("dielectric", np.full(3, weight * transmission),
-                          color=rgb(np.sqrt(np.minimum(base, 1.0))), ior=ior, binds=binds))
+                          color=rgb(np.sqrt(np.minimum(base, 1.0))), ior=ior, binds=binds, scales=under))
         weight *= 1.0 - transmission
     if weight > 0.0:
         eta = adjusted_specular_ior(ior, max(read("Specular IOR Level"), 0.0))
         kind = "diffuse" if eta == 1.0 else "plastic"
         binds = rough + (() if base_reg is None else (("color", base_reg),))
         terms.append(Term(kind, np.full(3, weight), color=rgb(base), roughness=roughness, ior=eta,
-                          binds=binds))
+                          binds=binds, scales=under))
     return terms
 
 
