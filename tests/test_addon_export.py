@@ -119,6 +119,12 @@ def build_materials():
     link(tree, scatter.outputs[0], vmix.inputs[1]); link(tree, absorb.outputs[0], vmix.inputs[2])
     link(tree, vmix.outputs[0], out.inputs["Volume"])
     m["textured_mix"] = material
+    # Principled with a textured Transmission Weight: glass weighted by t, the rest by 1 - t.
+    material = H.principled_material("Textured Glass", Base_Color=(0.9, 0.9, 0.9), Roughness=0.0)
+    tree = material.node_tree
+    gradient = tree.nodes.new("ShaderNodeTexGradient")
+    link(tree, gradient.outputs["Fac"], tree.nodes["Principled BSDF"].inputs["Transmission Weight"])
+    m["textured_glass"] = material
     # Fog: Volume Scatter + Volume Absorption, no surface.
     material, tree, out = node_material("Fog")
     scatter = tree.nodes.new("ShaderNodeVolumeScatter")
@@ -180,7 +186,8 @@ def build_main_scene():
     for obj in list(scene.collection.all_objects):
         bpy.data.objects.remove(obj, do_unlink=True)
     m = build_materials()
-    for key in ("principled", "level", "two_sided", "folded", "textured", "plain", "empty", "grouped"):
+    for key in ("principled", "level", "two_sided", "folded", "textured", "plain", "empty", "grouped",
+                "textured_glass"):
         H.floor_plane(f"Plane {key}", 0.5, m[key], z=-5.0)
     cube("Textured Mix Box", (6, 0, 0), 0.5, m["textured_mix"])
     cube("Fog Box", (0, 0, 0), 1.0, m["fog"])
@@ -554,6 +561,16 @@ def test_textured_mix_factor_is_a_program_emission_and_volume_use_the_socket_val
     warnings = exported["main"]["warnings"]
     assert any("'Fog Noise': Noise Texture nodes are not supported" in w for w in warnings)
     assert mesh(scene, "Plane plain").attributes == []  # constant materials export no attributes
+
+
+def test_textured_transmission_weighs_glass_and_the_layer_under_it(exported):
+    mat = material(exported["main_scene"], "Textured Glass")
+    kinds = [lobe.kind for lobe in mat.lobes]
+    assert kinds == ["dielectric", "plastic"]
+    assert [lobe.weight for lobe in mat.lobes] == [(1.0, 1.0, 1.0)] * 2  # the program scales them
+    rows = {int(row[0]): row for row in mat.program.bindings}
+    assert set(rows) == {0, 1} and all(int(r[4]) == 1 for r in rows.values())  # weight scales
+    assert rows[0][3] != rows[1][3]  # t and 1 - t
 
 
 def test_volume_only_material_is_an_interface_with_cycles_coefficients(exported):

@@ -296,7 +296,7 @@ def shader_principled(read: Inputs) -> list[Term]:
     if ignored:
         read.warn("ignored inputs: " + ", ".join(ignored))
     base_reg, rough = read.varying("Base Color"), roughness_bind(read)
-    metal_reg = read.varying("Metallic")
+    metal_reg, glass_reg = read.varying("Metallic"), read.varying("Transmission Weight")
     base = np.maximum(read("Base Color"), 0.0)
     metallic, alpha = saturate(read("Metallic")), saturate(read("Alpha"))
     roughness, transmission = saturate(read("Roughness")), saturate(read("Transmission Weight"))
@@ -321,13 +321,17 @@ def shader_principled(read: Inputs) -> list[Term]:
                           color=rgb(np.minimum(base, 1.0)), roughness=roughness, fresnel="f82",
                           tint=rgb(np.clip(read("Specular Tint"), 0.0, 1.0)), binds=binds, scales=over))
         weight *= 1.0 if metal_reg is not None else 1.0 - metallic
-    if transmission > 0.0 and weight > 0.0:
-        if roughness > 0.0:
-            read.warn(f"rough transmission (Roughness {roughness:g}) is rendered as smooth glass")
+    if (transmission > 0.0 or glass_reg is not None) and weight > 0.0:
+        if roughness > 0.0 or rough:
+            read.warn("rough transmission is rendered as smooth glass")
         binds = () if base_reg is None else (("color", capped_color(read, base_reg, 0.5)),)
-        terms.append(Term("dielectric", np.full(3, weight * transmission),
-                          color=rgb(np.sqrt(np.minimum(base, 1.0))), ior=ior, binds=binds, scales=under))
-        weight *= 1.0 - transmission
+        glass_weight, over = weight * transmission, under
+        if glass_reg is not None:  # as the metal: glass by t, the dielectric layer by 1 - t
+            (t, rest), glass_weight = factor_pair(read.program, glass_reg), weight
+            over, under = under + (t,), under + (rest,)
+        terms.append(Term("dielectric", np.full(3, glass_weight),
+                          color=rgb(np.sqrt(np.minimum(base, 1.0))), ior=ior, binds=binds, scales=over))
+        weight *= 1.0 if glass_reg is not None else 1.0 - transmission
     if weight > 0.0:
         eta = adjusted_specular_ior(ior, max(read("Specular IOR Level"), 0.0))
         kind = "diffuse" if eta == 1.0 else "plastic"

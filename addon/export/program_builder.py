@@ -35,6 +35,7 @@ class ProgramBuilder:
         self.attributes: list[str] = []
         self.images: list[str] = []
         self._consts: dict[tuple, Reg] = {}
+        self._emitted: dict[tuple, Reg] = {}  # identical instructions are emitted once
 
     # ---------------------------------------------------------------- registers
     def alloc(self, width: int) -> Reg:
@@ -52,19 +53,25 @@ class ProgramBuilder:
 
     def emit(self, op: str, width: int, *sources: Reg | None, i0: int = 0, i1: int = 0, i2: int = 0,
              dst: Reg | None = None) -> Reg:
-        """Append one instruction writing `width` registers (a new Reg unless dst is given)."""
-        dst = dst or self.alloc(width)
+        """Append one instruction writing `width` registers (a new Reg unless dst is given).
+        Without dst, an instruction identical to an earlier one returns that one's result
+        (a closure evaluated for both faces asks for the same values twice)."""
         regs = [s.index if s is not None else 0 for s in sources] + [0] * (5 - len(sources))
+        key = (op, width, *regs, int(i0), int(i1), int(i2))
+        if dst is None and key in self._emitted:
+            return self._emitted[key]
+        new = dst is None
+        dst = dst or self.alloc(width)
         self.code.append([OP[op], dst.index, *regs, int(i0), int(i1), int(i2)])
+        if new:
+            self._emitted[key] = dst
         return dst
 
     # ---------------------------------------------------------------- inputs of the program
     def attribute(self, name: str, width: int) -> Reg:
         if name not in self.attributes:
             self.attributes.append(name)
-        out = self.alloc(3)
-        self.emit("attribute", 3, i0=self.attributes.index(name), i1=width, dst=out)
-        return out
+        return self.emit("attribute", 3, i0=self.attributes.index(name), i1=width)
 
     def image(self, name: str) -> int:
         if name not in self.images:
