@@ -39,6 +39,7 @@ from .media.compile import build_media_data
 from .media.layout import MediaData
 from .scene import MAX_STACK as MAX_STACK  # re-exported: the integrator sizes its stacks with it
 from .scene import PROJECTIONS, SIDES, Scene
+from .shading.table import ShadingTables, build_shading_tables
 
 
 class Geometry(NamedTuple):
@@ -99,6 +100,7 @@ class CompiledScene:
     transparent: bool = False  # Film > Transparent: the world seen directly gives alpha 0
     aovs: bool = False  # the surface stage writes the passes' columns (renderer.passes)
     mist: tuple[float, float, float] = (5.0, 1.0 / 25.0, 2.0)  # start, 1 / depth, falloff exponent
+    shading: ShadingTables | None = None  # shader programs (renderer.shading.table); None = none
 
 
 def _merge_meshes(scene: Scene, material_index: dict[str, int], medium_index: dict[str, int]):
@@ -197,7 +199,8 @@ def compile_scene(scene: Scene) -> CompiledScene:
     _, _, width, height = scene.film.window()
     return CompiledScene(vertices, indices, geometry, materials, lights, media, _camera(scene),
                          width, height, world_medium, has_media, needs_walk, radius,
-                         bool(scene.film.transparent), bool(scene.film.aovs), _mist(scene.film))
+                         bool(scene.film.transparent), bool(scene.film.aovs), _mist(scene.film),
+                         build_shading_tables(scene.materials, scene.meshes, scene.images, indices.shape[0]))
 
 
 def _mist(film) -> tuple[float, float, float]:

@@ -32,6 +32,13 @@ ARRAY_DTYPES: dict[str, np.dtype] = {
     "density": np.dtype(np.float32),
     "flame": np.dtype(np.float32),
     "temperature": np.dtype(np.float32),
+    # shader programs (renderer.shading.program) and the data they read
+    "code": np.dtype(np.int32),
+    "registers": np.dtype(np.float32),
+    "bindings": np.dtype(np.int32),
+    "data": np.dtype(np.float32),
+    "values": np.dtype(np.float32),
+    "pixels": np.dtype(np.float32),
 }
 # Transforms are 16 numbers: written inline in the JSON, where a person can read them.
 MATRIX_FIELDS = frozenset({"to_world"})

@@ -17,6 +17,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .shading.program import ImageTexture, ShaderProgram
+
 SCENE_FORMAT_VERSION = 1
 
 RGB = tuple[float, float, float]
@@ -177,6 +179,16 @@ class Material:
     lobes: list[Lobe] = field(default_factory=list)
     emission: RGB = (0.0, 0.0, 0.0)  # radiance leaving the surface, W/(m^2 sr)
     emission_sides: str = "front"  # "front", "back" or "both"
+    # The varying part of the node tree (textures...), run per shading point; None = constant.
+    program: ShaderProgram | None = None
+
+
+@dataclass
+class CornerAttribute:
+    """Values at each triangle corner, interpolated at a hit with its barycentrics."""
+
+    name: str  # as ShaderProgram.attributes names it, e.g. "uv:UVMap", "generated"
+    values: np.ndarray  # (T, 3, k) float32, k <= 3
 
 
 @dataclass
@@ -195,6 +207,8 @@ class Mesh:
     material_ids: np.ndarray | None = None  # (T,) int32; None = all zero
     normals: np.ndarray | None = None  # (V, 3) float32 shading normals, or None for flat
     medium: str | None = None  # name of the medium inside, or None
+    # Per-corner data shader programs read (UV maps, generated and object coordinates...).
+    attributes: list[CornerAttribute] = field(default_factory=list)
 
 
 @dataclass
@@ -297,3 +311,4 @@ class Scene:
     media: list[Medium] = field(default_factory=list)
     environment: Environment = field(default_factory=Environment)
     medium: str | None = None  # scene-wide medium the camera and every path start in
+    images: list[ImageTexture] = field(default_factory=list)  # read by shader programs

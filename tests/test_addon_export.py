@@ -92,14 +92,39 @@ def build_materials():
     link(tree, diffuse.outputs[0], mix.inputs[1]); link(tree, emission.outputs[0], mix.inputs[2])
     link(tree, mix.outputs[0], out.inputs["Surface"])
     m["folded"] = material
-    # An image texture feeding two inputs: one warning, both inputs keep their own values.
+    # A texture Haze does not compile (Brick) feeding two inputs: one warning, both inputs
+    # keep their own values.
     material = H.principled_material("Textured", Base_Color=(0.1, 0.6, 0.3), Roughness=0.7)
     tree = material.node_tree
-    texture = tree.nodes.new("ShaderNodeTexImage"); texture.name = "Rust Texture"
+    texture = tree.nodes.new("ShaderNodeTexBrick"); texture.name = "Rust Texture"
     bsdf = tree.nodes["Principled BSDF"]
     link(tree, texture.outputs["Color"], bsdf.inputs["Base Color"])
-    link(tree, texture.outputs["Alpha"], bsdf.inputs["Roughness"])
+    link(tree, texture.outputs["Fac"], bsdf.inputs["Roughness"])
     m["textured"] = material
+    # A Checker as Mix Shader factor between a diffuse and an emission (emission cannot vary:
+    # it takes the Fac socket's own 0.5), and a Noise-mixed volume (homogeneous: folded).
+    material, tree, out = node_material("Textured Mix")
+    checker = tree.nodes.new("ShaderNodeTexChecker")
+    red = tree.nodes.new("ShaderNodeBsdfDiffuse"); red.inputs["Color"].default_value = (1, 0, 0, 1)
+    glow = tree.nodes.new("ShaderNodeEmission"); glow.inputs["Strength"].default_value = 2.0
+    mix = tree.nodes.new("ShaderNodeMixShader"); mix.name = "Textured Factor"
+    link(tree, checker.outputs["Fac"], mix.inputs[0])
+    link(tree, red.outputs[0], mix.inputs[1]); link(tree, glow.outputs[0], mix.inputs[2])
+    link(tree, mix.outputs[0], out.inputs["Surface"])
+    noise = tree.nodes.new("ShaderNodeTexNoise"); noise.name = "Fog Noise"
+    scatter = tree.nodes.new("ShaderNodeVolumeScatter")
+    absorb = tree.nodes.new("ShaderNodeVolumeAbsorption")
+    vmix = tree.nodes.new("ShaderNodeMixShader")
+    link(tree, noise.outputs["Fac"], vmix.inputs[0])
+    link(tree, scatter.outputs[0], vmix.inputs[1]); link(tree, absorb.outputs[0], vmix.inputs[2])
+    link(tree, vmix.outputs[0], out.inputs["Volume"])
+    m["textured_mix"] = material
+    # Principled with a textured Transmission Weight: glass weighted by t, the rest by 1 - t.
+    material = H.principled_material("Textured Glass", Base_Color=(0.9, 0.9, 0.9), Roughness=0.0)
+    tree = material.node_tree
+    gradient = tree.nodes.new("ShaderNodeTexGradient")
+    link(tree, gradient.outputs["Fac"], tree.nodes["Principled BSDF"].inputs["Transmission Weight"])
+    m["textured_glass"] = material
     # Fog: Volume Scatter + Volume Absorption, no surface.
     material, tree, out = node_material("Fog")
     scatter = tree.nodes.new("ShaderNodeVolumeScatter")
@@ -161,8 +186,10 @@ def build_main_scene():
     for obj in list(scene.collection.all_objects):
         bpy.data.objects.remove(obj, do_unlink=True)
     m = build_materials()
-    for key in ("principled", "level", "two_sided", "folded", "textured", "plain", "empty", "grouped"):
+    for key in ("principled", "level", "two_sided", "folded", "textured", "plain", "empty", "grouped",
+                "textured_glass"):
         H.floor_plane(f"Plane {key}", 0.5, m[key], z=-5.0)
+    cube("Textured Mix Box", (6, 0, 0), 0.5, m["textured_mix"])
     cube("Fog Box", (0, 0, 0), 1.0, m["fog"])
     cube("Smoke Box", (3, 0, 0), 0.5, m["smoke"])
     cube("Open Box", (0, 3, 0), 0.5, m["fog"], skip_face=1)
@@ -509,10 +536,41 @@ def test_value_math_and_mix_nodes_are_folded(exported):
 
 def test_unsupported_node_warns_once_and_uses_socket_values(exported):
     warnings = [w for w in exported["main"]["warnings"] if "Rust Texture" in w]
-    assert warnings == ["Material 'Textured', node 'Rust Texture': Image Texture nodes are not supported "
+    assert warnings == ["Material 'Textured', node 'Rust Texture': Brick Texture nodes are not supported "
                         "by Haze; the inputs it feeds use their own values"]
     plastic = lobes_by_kind(material(exported["main_scene"], "Textured"))["plastic"]
     assert plastic.color == pytest.approx((0.1, 0.6, 0.3)) and plastic.roughness == pytest.approx(0.7)
+
+
+def test_textured_mix_factor_is_a_program_emission_and_volume_use_the_socket_value(exported):
+    scene = exported["main_scene"]
+    mat = material(scene, "Textured Mix")
+    assert mat.program is not None and len(mat.program.code) > 0
+    assert mat.program.attributes == ["generated"]  # the Checker's default coordinates
+    assert {int(row[4]) for row in mat.program.bindings} == {1}  # weight scales only
+    assert mat.emission == pytest.approx((1.0, 1.0, 1.0))  # 2 x the Fac socket's 0.5
+    assert "Material 'Textured Mix', node 'Textured Factor': emission cannot vary over a surface yet: " \
+           "it is mixed by the Fac socket's own value" in exported["main"]["warnings"]
+    box = mesh(scene, "Textured Mix Box")
+    assert box.attributes and box.attributes[0].name == "generated"
+    assert box.attributes[0].values.shape == (12, 3, 3)
+    generated = box.attributes[0].values
+    assert generated.min() == pytest.approx(0.0) and generated.max() == pytest.approx(1.0)  # texture space
+    medium = {m.name: m for m in scene.media}[box.medium]
+    assert medium.sigma_s == pytest.approx((0.4, 0.4, 0.4))  # Fac 0.5 x colour 0.8 x density 1 (folded)
+    warnings = exported["main"]["warnings"]
+    assert any("'Fog Noise': Noise Texture nodes are not supported" in w for w in warnings)
+    assert mesh(scene, "Plane plain").attributes == []  # constant materials export no attributes
+
+
+def test_textured_transmission_weighs_glass_and_the_layer_under_it(exported):
+    mat = material(exported["main_scene"], "Textured Glass")
+    kinds = [lobe.kind for lobe in mat.lobes]
+    assert kinds == ["dielectric", "plastic"]
+    assert [lobe.weight for lobe in mat.lobes] == [(1.0, 1.0, 1.0)] * 2  # the program scales them
+    rows = {int(row[0]): row for row in mat.program.bindings}
+    assert set(rows) == {0, 1} and all(int(r[4]) == 1 for r in rows.values())  # weight scales
+    assert rows[0][3] != rows[1][3]  # t and 1 - t
 
 
 def test_volume_only_material_is_an_interface_with_cycles_coefficients(exported):

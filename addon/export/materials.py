@@ -17,7 +17,9 @@ import warnings
 import numpy as np
 
 from renderer.scene import LOBE_KINDS, Lobe, Material, Medium
+from renderer.shading.program import BIND_FIELDS, BIND_SCALE, BIND_SET
 
+from .images import ImageLibrary
 from .messages import Messages, material_subject
 from .node_closures import VOLUME_KINDS, Term, as_volume_terms, rgb
 from .nodes import ShaderGraph
@@ -78,13 +80,29 @@ def choose_emission(front: np.ndarray, back: np.ndarray, subject: str, messages:
     return rgb(front), "both"
 
 
-def surface_material(name: str, terms: list[Term], messages: Messages) -> Material:
+def program_bindings(lobe_terms: list[Term]) -> list[tuple[int, int, int, int, int]]:
+    """Rows of ShaderProgram.bindings for the lobes made from `lobe_terms`, in order."""
+    rows = []
+    for lobe, term in enumerate(lobe_terms):
+        for field, reg in term.binds:
+            rows.append((lobe, BIND_FIELDS.index(field), reg.width, reg.index, BIND_SET))
+        for reg in term.scales:
+            rows.append((lobe, BIND_FIELDS.index("weight"), 3, reg.index, BIND_SCALE))
+    return rows
+
+
+def surface_material(name: str, terms: list[Term], messages: Messages, program=None) -> Material:
+    """`program` (a ProgramBuilder) holds the registers the terms' bindings name."""
     subject = material_subject(name)
     if any(term.kind in VOLUME_KINDS for term in terms):
         messages.warn(subject, "a volume shader connected to the Surface output is ignored (as in Cycles)")
-    lobes = [lobe_from_term(t) for t in terms if t.kind in LOBE_KINDS and np.any(t.weight != 0.0)]
+    lobe_terms = [t for t in terms if t.kind in LOBE_KINDS and np.any(t.weight != 0.0)]
+    lobes = [lobe_from_term(t) for t in lobe_terms]
     emission, emission_sides = choose_emission(*emission_per_side(terms), subject, messages)
-    return Material(name, lobes=close_open_sides(lobes), emission=emission, emission_sides=emission_sides)
+    bindings = program_bindings(lobe_terms)
+    shader = program.build(bindings) if program is not None and bindings else None
+    return Material(name, lobes=close_open_sides(lobes), emission=emission, emission_sides=emission_sides,
+                    program=shader)
 
 
 def mean_anisotropy(scatter: list[Term], subject: str, messages: Messages) -> float:
@@ -138,7 +156,8 @@ def active_output(node_tree):
     return node_tree.get_output_node("CYCLES") if node_tree is not None else None
 
 
-def convert_material(blender_material, messages: Messages) -> MaterialExport:
+def convert_material(blender_material, messages: Messages,
+                     images: ImageLibrary | None = None) -> MaterialExport:
     name = blender_material.name_full
     subject = material_subject(name)
     tree = blender_material.node_tree
@@ -148,14 +167,17 @@ def convert_material(blender_material, messages: Messages) -> MaterialExport:
     if output is None:
         messages.warn(subject, "has no active Material Output node; rendered black (as in Cycles)")
         return MaterialExport(Material(name, lobes=close_open_sides([])), None)
-    graph = ShaderGraph(subject, messages)
+    graph = ShaderGraph(subject, messages, images)
     if graph.link_source(output.inputs["Displacement"]) is not None:
         messages.warn(subject, "displacement is not supported and is ignored")
+    graph.programs = False  # media are homogeneous here: no program reaches a Volume output
     volume_terms = as_volume_terms(graph.closure(output.inputs["Volume"]))
+    graph.programs = images is not None
     medium = volume_medium(medium_name(name), volume_terms, messages, subject)
     if graph.link_source(output.inputs["Surface"]) is None and medium is not None:
         return MaterialExport(Material(name), medium)  # invisible boundary of the medium
-    return MaterialExport(surface_material(name, graph.closure(output.inputs["Surface"]), messages), medium)
+    surface = graph.closure(output.inputs["Surface"])
+    return MaterialExport(surface_material(name, surface, messages, graph.program), medium)
 
 
 class MaterialLibrary:
@@ -166,13 +188,14 @@ class MaterialLibrary:
         self._by_name: dict[str, MaterialExport] = {}
         self._default: Material | None = None
         self.extra_materials: list[Material] = []  # e.g. area-light emitters
+        self.images = ImageLibrary(messages)  # what the shader programs read
 
     def get(self, blender_material) -> MaterialExport:
         if blender_material is None:
             return MaterialExport(self.default(), None)
         name = blender_material.name_full
         if name not in self._by_name:
-            self._by_name[name] = convert_material(blender_material, self.messages)
+            self._by_name[name] = convert_material(blender_material, self.messages, self.images)
         return self._by_name[name]
 
     def default(self) -> Material:

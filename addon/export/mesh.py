@@ -11,11 +11,11 @@ corner its own vertex with its corner normal.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
-from renderer.scene import Mesh
+from renderer.scene import CornerAttribute, Mesh
 
 from .messages import Messages, object_subject
 
@@ -29,6 +29,8 @@ class LocalGeometry:
     normals: np.ndarray | None  # (V, 3) float32, or None for flat shading
     slots: np.ndarray  # (T,) int32 material slot of each triangle
     topology: np.ndarray  # (T, 3) int32 into the mesh's own vertices (for closedness checks)
+    # Corner attributes shader programs read, by name (renderer.scene.CornerAttribute): (T, 3, k).
+    attributes: dict[str, np.ndarray] = field(default_factory=dict)
 
 
 def read_array(collection, attribute: str, count: int, width: int, dtype) -> np.ndarray:
@@ -47,7 +49,67 @@ def read_attribute(mesh, name: str, width: int, dtype, fallback: int | None = No
     return read_array(attribute.data, field, len(attribute.data), width, dtype)
 
 
-def read_geometry(mesh) -> LocalGeometry:
+def active_render_uv(mesh):
+    return next((layer for layer in mesh.uv_layers if layer.active_render), None)
+
+
+def corner_attribute(mesh, name: str, corners: np.ndarray, positions: np.ndarray, topology: np.ndarray):
+    """(T, 3, k) float32 values of attribute `name` at the triangles' corners, or None when
+    the mesh lacks it. `positions` are the mesh's vertices, `topology` the triangles' vertex
+    indices, `corners` their corner (loop) indices."""
+    if name.startswith("uv:"):
+        layer = mesh.uv_layers.get(name[3:]) if name[3:] else active_render_uv(mesh)
+        if layer is None:
+            return None
+        return read_array(layer.uv, "vector", len(mesh.loops), 2, np.float32)[corners]
+    if name.startswith("attr:"):
+        return named_attribute(mesh, name[5:], corners, topology)
+    local = positions[topology]
+    if name == "object":
+        return local
+    if name == "generated":
+        # Blender's texture space: location +- size maps to [0, 1] (Cycles' Generated).
+        location = np.array(mesh.texspace_location, np.float32)
+        size = np.array(mesh.texspace_size, np.float32)
+        size = np.where(size != 0.0, size, np.float32(1.0))
+        return (local - (location - size)) / (2.0 * size)
+    return None
+
+
+ATTRIBUTE_FIELDS = {"FLOAT_COLOR": ("color", 4), "BYTE_COLOR": ("color", 4), "FLOAT_VECTOR": ("vector", 3),
+                    "FLOAT2": ("vector", 2), "FLOAT": ("value", 1), "INT": ("value", 1),
+                    "BOOLEAN": ("value", 1)}
+
+
+def named_attribute(mesh, name: str, corners: np.ndarray, topology: np.ndarray):
+    """(T, 3, 3) values of a mesh attribute at the triangles' corners (an empty name: the
+    render colour attribute), from its domain; colours scene-linear (Blender's `color`),
+    scalars repeated over three components as Cycles reads them. None when missing."""
+    if not name:
+        index = mesh.color_attributes.render_color_index
+        attribute = mesh.color_attributes[index] if 0 <= index < len(mesh.color_attributes) else None
+    else:
+        attribute = mesh.attributes.get(name)
+    if attribute is None or attribute.data_type not in ATTRIBUTE_FIELDS or \
+            attribute.domain not in ("POINT", "CORNER", "FACE"):
+        return None
+    field_name, width = ATTRIBUTE_FIELDS[attribute.data_type]
+    values = read_array(attribute.data, field_name, len(attribute.data), width, np.float32).reshape(-1, width)
+    if attribute.domain == "CORNER":
+        per_corner = values[corners]
+    elif attribute.domain == "POINT":
+        per_corner = values[topology]
+    else:
+        faces = read_array(mesh.loop_triangle_polygons, "value", len(corners), 1, np.int32)
+        per_corner = np.repeat(values[faces][:, None, :], 3, axis=1)
+    if width == 1:
+        return np.repeat(per_corner, 3, axis=2)
+    out = np.zeros(per_corner.shape[:2] + (3,), np.float32)
+    out[..., :min(width, 3)] = per_corner[..., :3]
+    return out
+
+
+def read_geometry(mesh, attributes: tuple[str, ...] = ()) -> LocalGeometry:
     """Triangulate `mesh` (Blender's loop triangles) into arrays, normals per its normals domain.
 
     Only the loop triangles' corner indices are read from a struct collection (the slow kind
@@ -63,14 +125,16 @@ def read_geometry(mesh) -> LocalGeometry:
     if positions is None:
         positions = read_array(mesh.vertices, "co", len(mesh.vertices), 3, np.float32)
     slots = triangle_slots(mesh, tri_count)
+    values = {name: corner_attribute(mesh, name, corners, positions, topology) for name in attributes}
+    values = {name: v.astype(np.float32) for name, v in values.items() if v is not None}
     domain = mesh.normals_domain if tri_count else "FACE"
     if domain == "POINT":
         normals = read_array(mesh.vertex_normals, "vector", len(positions), 3, np.float32)
-        return LocalGeometry(positions, topology, normals, slots, topology)
+        return LocalGeometry(positions, topology, normals, slots, topology, values)
     if domain == "CORNER":
         normals = read_array(mesh.corner_normals, "vector", len(corner_vertices), 3, np.float32)
-        return LocalGeometry(positions[corner_vertices], corners, normals, slots, topology)
-    return LocalGeometry(positions, topology, None, slots, topology)
+        return LocalGeometry(positions[corner_vertices], corners, normals, slots, topology, values)
+    return LocalGeometry(positions, topology, None, slots, topology, values)
 
 
 def triangle_slots(mesh, tri_count: int) -> np.ndarray:
@@ -89,6 +153,7 @@ class WorldGeometry:
     normals: np.ndarray | None
     slots: np.ndarray
     topology: np.ndarray
+    attributes: dict[str, np.ndarray] = field(default_factory=dict)
 
 
 def transform(geometry: LocalGeometry, matrix: np.ndarray) -> WorldGeometry:
@@ -110,7 +175,8 @@ def transform(geometry: LocalGeometry, matrix: np.ndarray) -> WorldGeometry:
     mirrored = np.linalg.det(linear) < 0.0
     triangles = geometry.triangles[:, ::-1].copy() if mirrored else geometry.triangles
     topology = geometry.topology[:, ::-1].copy() if mirrored else geometry.topology
-    return WorldGeometry(vertices, triangles, normals, geometry.slots, topology)
+    attributes = {k: (v[:, ::-1].copy() if mirrored else v) for k, v in geometry.attributes.items()}
+    return WorldGeometry(vertices, triangles, normals, geometry.slots, topology, attributes)
 
 
 def edge_problems(topology: np.ndarray) -> tuple[int, int]:
@@ -153,6 +219,23 @@ class MeshPart:
     material_names: list[str]  # material of each slot; triangle slots index this
 
 
+def merge_attributes(parts: list[MeshPart]) -> dict[str, np.ndarray]:
+    """Each part's corner attributes concatenated; zeros where a part lacks one."""
+    names = list(dict.fromkeys(name for part in parts for name in part.geometry.attributes))
+    merged = {}
+    for name in names:
+        width = max(p.geometry.attributes[name].shape[2] for p in parts if name in p.geometry.attributes)
+        merged[name] = np.concatenate([
+            p.geometry.attributes.get(name, np.zeros((len(p.geometry.triangles), 3, width), np.float32))
+            for p in parts])
+    return merged
+
+
+def mesh_attributes(attributes: dict[str, np.ndarray], mask=None) -> list[CornerAttribute]:
+    return [CornerAttribute(name, values if mask is None else values[mask])
+            for name, values in attributes.items()]
+
+
 def merge_parts(parts: list[MeshPart]) -> tuple[WorldGeometry, list[str], np.ndarray]:
     """Concatenate parts: (geometry, material names, per-triangle material ids)."""
     names: list[str] = []
@@ -172,7 +255,7 @@ def merge_parts(parts: list[MeshPart]) -> tuple[WorldGeometry, list[str], np.nda
         topology_offset += int(g.topology.max()) + 1 if len(g.topology) else 0
     merged_normals = np.concatenate(normals) if all(n is not None for n in normals) else None
     geometry = WorldGeometry(np.concatenate(vertices), np.concatenate(triangles), merged_normals,
-                             np.zeros(0, np.int32), np.concatenate(topology))
+                             np.zeros(0, np.int32), np.concatenate(topology), merge_attributes(parts))
     return geometry, names, np.concatenate(ids).astype(np.int32)
 
 
@@ -188,7 +271,7 @@ def build_meshes(name: str, parts: list[MeshPart], medium_of: dict[str, str | No
         if distinct[0] is not None:
             warn_if_not_closed(name, distinct[0], geometry.topology, messages)
         return [Mesh(name, geometry.vertices, geometry.triangles.astype(np.int32), names,
-                     material_ids, geometry.normals, distinct[0])]
+                     material_ids, geometry.normals, distinct[0], mesh_attributes(geometry.attributes))]
     medium_ids = np.array([distinct.index(m) for m in media], dtype=np.int32)[material_ids]
     meshes = []
     for index, medium in enumerate(distinct):
@@ -197,5 +280,6 @@ def build_meshes(name: str, parts: list[MeshPart], medium_of: dict[str, str | No
         part_name = name if medium is None else f"{name} [{medium}]"
         if medium is not None:
             warn_if_not_closed(name, medium, geometry.topology[mask], messages)
-        meshes.append(Mesh(part_name, vertices, triangles, names, material_ids[mask], normals, medium))
+        meshes.append(Mesh(part_name, vertices, triangles, names, material_ids[mask], normals, medium,
+                           mesh_attributes(geometry.attributes, mask)))
     return meshes

@@ -18,6 +18,7 @@ from typing import Protocol
 
 import numpy as np
 
+from .closure_bindings import capped_color, color_binds, factor_pair, mix_by_program, roughness_bind
 from .node_values import BACK, FRONT, SIDE_NAMES, ValueGraph
 
 
@@ -36,6 +37,10 @@ class Term:
     anisotropy: float = 0.0
     fresnel: str = "constant"  # conductors: "constant" (colour) or "f82" (F0 = colour, edge tint)
     tint: tuple[float, float, float] = (1.0, 1.0, 1.0)
+    # Shader program results (program_builder.Reg) driving lobe fields per shading point:
+    # (field, register) pairs that set a field, and scalar registers scaling the weight.
+    binds: tuple = ()
+    scales: tuple = ()
 
     def same_closure(self, other: Term) -> bool:
         return (
@@ -47,6 +52,8 @@ class Term:
             and math.isclose(self.roughness, other.roughness, abs_tol=1e-9)
             and math.isclose(self.ior, other.ior, abs_tol=1e-9)
             and math.isclose(self.anisotropy, other.anisotropy, abs_tol=1e-9)
+            and self.binds == other.binds
+            and self.scales == other.scales
         )
 
 
@@ -100,11 +107,31 @@ class Inputs:
 
     def __init__(self, graph: ValueGraph, node, scope: tuple, side: int) -> None:
         self._graph, self.node, self._scope, self._side = graph, node, scope, side
+        self._claimed: set[str] = set()
 
     def __call__(self, name: str):
+        """The input's value; for an input claimed with varying(), its unlinked value (a
+        placeholder: the program sets the field it drives)."""
         socket = self.node.inputs[name]
-        row = self._graph.input_value(socket, self._scope)[self._side]
+        if name in self._claimed:
+            width = 3 if socket.type in ("RGBA", "VECTOR") else 1
+            row = self._graph.unlinked_value(socket, width)[self._side]
+        else:
+            row = self._graph.input_value(socket, self._scope)[self._side]
         return float(row[0]) if row.shape[0] == 1 else row.copy()
+
+    def varying(self, name: str):
+        """The input's program register when a texture drives it (the caller binds it to a
+        lobe field), else None. Graphs without programs (volumes) return None."""
+        find = getattr(self._graph, "input_varying", None)
+        reg = None if find is None else find(self.node.inputs[name], self._scope)
+        if reg is not None:
+            self._claimed.add(name)
+        return reg
+
+    @property
+    def program(self):
+        return self._graph.program
 
     def warn(self, problem: str) -> None:
         self._graph.warn_node(self.node, problem)
@@ -118,6 +145,10 @@ def saturate(value: float) -> float:
 
 
 def combine_mix(graph: ClosureGraph, node, scope: tuple) -> list[Term]:
+    varying = getattr(graph, "input_varying", None)
+    reg = None if varying is None else varying(node.inputs[0], scope)
+    if reg is not None:
+        return mix_by_program(graph, node, scope, reg)
     # Cycles clamps the mix factor to [0, 1].
     factor = np.clip(graph.input_value(node.inputs[0], scope), 0.0, 1.0)
     first = graph.closure(node.inputs[1], scope)
@@ -154,7 +185,8 @@ def warn_ignored_distribution(read: Inputs, node) -> None:
 def shader_diffuse(read: Inputs) -> list[Term]:
     if read("Roughness") > 0.0:
         read.warn("Roughness (Oren-Nayar) is ignored; Haze's diffuse lobe is Lambertian")
-    return [Term("diffuse", np.ones(3), color=rgb(np.maximum(read("Color"), 0.0)))]
+    binds = color_binds(read)
+    return [Term("diffuse", np.ones(3), color=rgb(np.maximum(read("Color"), 0.0)), binds=binds)]
 
 
 def shader_glossy(read: Inputs) -> list[Term]:
@@ -162,9 +194,11 @@ def shader_glossy(read: Inputs) -> list[Term]:
     warn_ignored_distribution(read, node)
     if read("Anisotropy") != 0.0:
         read.warn("Anisotropy is ignored")
+    binds = color_binds(read) + roughness_bind(read)
     roughness = saturate(read("Roughness"))
-    return [Term(reflection_kind(roughness), np.ones(3), color=rgb(np.maximum(read("Color"), 0.0)),
-                 roughness=roughness)]
+    kind = "rough_conductor" if any(f == "roughness" for f, _ in binds) else reflection_kind(roughness)
+    return [Term(kind, np.ones(3), color=rgb(np.maximum(read("Color"), 0.0)), roughness=roughness,
+                 binds=binds)]
 
 
 def conductor_reflectance(cos: float, ior: np.ndarray, extinction: np.ndarray) -> np.ndarray:
@@ -215,11 +249,13 @@ def shader_glass(read: Inputs) -> list[Term]:
     if roughness > 0.0:
         read.warn(f"rough glass (Roughness {roughness:g}) is rendered as smooth glass")
     ior = max(read("IOR"), 1e-5)
-    return [Term("dielectric", np.ones(3), color=rgb(np.maximum(read("Color"), 0.0)), ior=ior)]
+    return [Term("dielectric", np.ones(3), color=rgb(np.maximum(read("Color"), 0.0)), ior=ior,
+                 binds=color_binds(read))]
 
 
 def shader_transparent(read: Inputs) -> list[Term]:
-    return [Term("transparent", np.ones(3), color=rgb(np.maximum(read("Color"), 0.0)))]
+    binds = color_binds(read)
+    return [Term("transparent", np.ones(3), color=rgb(np.maximum(read("Color"), 0.0)), binds=binds)]
 
 
 def shader_emission(read: Inputs) -> list[Term]:
@@ -259,6 +295,8 @@ def shader_principled(read: Inputs) -> list[Term]:
     ignored = principled_ignored_inputs(read)
     if ignored:
         read.warn("ignored inputs: " + ", ".join(ignored))
+    base_reg, rough = read.varying("Base Color"), roughness_bind(read)
+    metal_reg, glass_reg = read.varying("Metallic"), read.varying("Transmission Weight")
     base = np.maximum(read("Base Color"), 0.0)
     metallic, alpha = saturate(read("Metallic")), saturate(read("Alpha"))
     roughness, transmission = saturate(read("Roughness")), saturate(read("Transmission Weight"))
@@ -271,21 +309,35 @@ def shader_principled(read: Inputs) -> list[Term]:
     emission = np.asarray(read("Emission Color")) * read("Emission Strength")
     if np.any(emission != 0.0):
         terms.append(Term("emission", np.broadcast_to(emission * weight, (3,)).astype(np.float64)))
-    if metallic > 0.0:
-        terms.append(Term(reflection_kind(roughness), np.full(3, weight * metallic),
+    under = ()  # weight scales of the layers under the metal when Metallic varies
+    if metallic > 0.0 or metal_reg is not None:
+        binds = rough + (() if base_reg is None else (("color", capped_color(read, base_reg)),))
+        kind = "rough_conductor" if rough else reflection_kind(roughness)
+        metal_weight, over = weight * metallic, ()
+        if metal_reg is not None:  # the program weighs the metal by m and what is under by 1 - m
+            (m, rest), metal_weight = factor_pair(read.program, metal_reg), weight
+            over, under = (m,), (rest,)
+        terms.append(Term(kind, np.full(3, metal_weight),
                           color=rgb(np.minimum(base, 1.0)), roughness=roughness, fresnel="f82",
-                          tint=rgb(np.clip(read("Specular Tint"), 0.0, 1.0))))
-        weight *= 1.0 - metallic
-    if transmission > 0.0 and weight > 0.0:
-        if roughness > 0.0:
-            read.warn(f"rough transmission (Roughness {roughness:g}) is rendered as smooth glass")
-        terms.append(Term("dielectric", np.full(3, weight * transmission),
-                          color=rgb(np.sqrt(np.minimum(base, 1.0))), ior=ior))
-        weight *= 1.0 - transmission
+                          tint=rgb(np.clip(read("Specular Tint"), 0.0, 1.0)), binds=binds, scales=over))
+        weight *= 1.0 if metal_reg is not None else 1.0 - metallic
+    if (transmission > 0.0 or glass_reg is not None) and weight > 0.0:
+        if roughness > 0.0 or rough:
+            read.warn("rough transmission is rendered as smooth glass")
+        binds = () if base_reg is None else (("color", capped_color(read, base_reg, 0.5)),)
+        glass_weight, over = weight * transmission, under
+        if glass_reg is not None:  # as the metal: glass by t, the dielectric layer by 1 - t
+            (t, rest), glass_weight = factor_pair(read.program, glass_reg), weight
+            over, under = under + (t,), under + (rest,)
+        terms.append(Term("dielectric", np.full(3, glass_weight),
+                          color=rgb(np.sqrt(np.minimum(base, 1.0))), ior=ior, binds=binds, scales=over))
+        weight *= 1.0 if glass_reg is not None else 1.0 - transmission
     if weight > 0.0:
         eta = adjusted_specular_ior(ior, max(read("Specular IOR Level"), 0.0))
         kind = "diffuse" if eta == 1.0 else "plastic"
-        terms.append(Term(kind, np.full(3, weight), color=rgb(base), roughness=roughness, ior=eta))
+        binds = rough + (() if base_reg is None else (("color", base_reg),))
+        terms.append(Term(kind, np.full(3, weight), color=rgb(base), roughness=roughness, ior=eta,
+                          binds=binds, scales=under))
     return terms
 
 

@@ -26,16 +26,25 @@ import numpy as np
 
 from .messages import Messages, node_subject
 from .node_closures import CLOSURE_HANDLERS, COMBINE_HANDLERS, Inputs, Term, fallback_closure, merge_sides
+from .node_program import PROGRAM_HANDLERS, VARYING_SOURCES
 from .node_values import BACK, FRONT, VALUE_HANDLERS, ValueHandler, convert, sided, socket_width
+from .program_builder import ProgramBuilder, Reg
 
 
 class ShaderGraph:
     """Folds one node tree (a material's or world's) into constant values and closure terms."""
 
-    def __init__(self, owner: str, messages: Messages) -> None:
+    def __init__(self, owner: str, messages: Messages, images=None) -> None:
         self.owner = owner  # e.g. "Material 'Glass'", used in every message
         self.messages = messages
         self._values: dict[tuple, np.ndarray] = {}
+        # Shader programs: what varies over the surface (textures...), compiled per node.
+        self.program = ProgramBuilder()
+        self.images = images  # images.ImageLibrary, or None: no Image Texture is compiled
+        # Whether inputs may compile to programs (material surfaces; worlds and volumes not yet).
+        self.programs = images is not None
+        self._varying: dict[tuple, bool] = {}
+        self._registers: dict[tuple, Reg | None] = {}
 
     # ---------------------------------------------------------------- links
     @staticmethod
@@ -123,6 +132,51 @@ class ShaderGraph:
             if candidate.identifier == identifier:
                 return candidate
         return None
+
+    # ---------------------------------------------------------------- programs
+    def is_varying(self, node, scope: tuple = ()) -> bool:
+        """Whether `node`'s outputs vary over a surface (a texture or coordinate reaches it)."""
+        key = (node.as_pointer(), tuple(n.as_pointer() for n in scope))
+        if key not in self._varying:
+            self._varying[key] = False  # a cycle (invalid tree) is not varying
+            self._varying[key] = self._find_varying(node, scope)
+        return self._varying[key]
+
+    def _find_varying(self, node, scope: tuple) -> bool:
+        if node.mute or node.bl_idname not in PROGRAM_HANDLERS and node.bl_idname != "NodeReroute":
+            return False
+        if node.bl_idname in VARYING_SOURCES:
+            return True
+        for socket in node.inputs:
+            source = self.link_source(socket)
+            if source is not None and self.is_varying(source[0], scope):
+                return True
+        return False
+
+    def input_varying(self, socket, scope: tuple = ()) -> Reg | None:
+        """The register of a varying input (converted to the socket's type), or None when
+        the input is constant or cannot be compiled (then input_value folds it, warning)."""
+        source = self.link_source(socket)
+        if not self.programs or source is None or not self.is_varying(source[0], scope):
+            return None
+        node, output = source
+        if node.bl_idname == "NodeReroute":
+            return self.input_varying(node.inputs[0], scope)
+        key = (node.as_pointer(), output.identifier, tuple(n.as_pointer() for n in scope))
+        if key not in self._registers:
+            self._registers[key] = PROGRAM_HANDLERS[node.bl_idname](self, node, output, scope)
+        reg = self._registers[key]
+        return None if reg is None else self.program.convert(reg, output.type, socket.type)
+
+    def operand(self, socket, scope: tuple = ()) -> Reg:
+        """A node input as a register: varying, or its folded value (front faces) as a constant."""
+        reg = self.input_varying(socket, scope)
+        if reg is not None:
+            return reg
+        return self.program.const(self.input_value(socket, scope)[FRONT])
+
+    def add_image(self, image) -> str | None:
+        return None if self.images is None else self.images.add(image, self.owner)
 
     # ---------------------------------------------------------------- closures
     def closure(self, socket, scope: tuple = ()) -> list[Term]:

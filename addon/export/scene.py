@@ -73,6 +73,12 @@ def is_rendered(instance, render_depsgraph: bool) -> bool:
     return render_depsgraph or original is None or not original.hide_render
 
 
+def used_images(images: list, materials: list) -> list:
+    """The images some exported material's program reads (each once)."""
+    read = {name for m in materials if m.program is not None for name in m.program.images}
+    return [image for image in images if image.name in read]
+
+
 class MeshCollector:
     """Reads geometry once per evaluated mesh and groups instances into Haze meshes."""
 
@@ -85,11 +91,14 @@ class MeshCollector:
     def add(self, instance) -> None:
         obj = instance.object
         self._warn_ignored_visibility(obj)
-        geometry = self._local_geometry(obj)
+        materials = [self.library.get(m).material for m in self._slot_materials(obj)]
+        # Only the corner attributes some program of this object reads are exported.
+        needed = tuple(dict.fromkeys(a for m in materials if m.program for a in m.program.attributes))
+        geometry = self._local_geometry(obj, needed)
         if geometry is None or len(geometry.triangles) == 0:
             return
         world = transform(geometry, np.array(instance.matrix_world, dtype=np.float64))
-        names = [self.library.get(m).material.name for m in self._slot_materials(obj)]
+        names = [m.name for m in materials]
         self.groups.setdefault(instance_group(instance), []).append(MeshPart(world, names))
 
     def _warn_ignored_visibility(self, obj) -> None:
@@ -104,19 +113,20 @@ class MeshCollector:
             materials = list(obj.data.materials)  # e.g. geometry-nodes output without object slots
         return materials or [None]
 
-    def _local_geometry(self, obj) -> LocalGeometry | None:
+    def _local_geometry(self, obj, attributes: tuple[str, ...]) -> LocalGeometry | None:
         data = obj.data
-        key = (obj.name, data.name if data is not None else "", data.as_pointer() if data is not None else 0)
+        key = (obj.name, data.name if data is not None else "", data.as_pointer() if data is not None else 0,
+               attributes)
         if key not in self._geometry_cache:
-            self._geometry_cache[key] = self._read(obj)
+            self._geometry_cache[key] = self._read(obj, attributes)
         return self._geometry_cache[key]
 
-    def _read(self, obj) -> LocalGeometry | None:
+    def _read(self, obj, attributes: tuple[str, ...]) -> LocalGeometry | None:
         if obj.type == "MESH":
-            return read_geometry(obj.data)
+            return read_geometry(obj.data, attributes)
         mesh = obj.to_mesh()  # curves, text, surfaces, metaballs: their evaluated mesh
         try:
-            return read_geometry(mesh) if mesh is not None else None
+            return read_geometry(mesh, attributes) if mesh is not None else None
         finally:
             obj.to_mesh_clear()
 
@@ -204,6 +214,7 @@ def export_scene(depsgraph, film: Film | None = None, render_depsgraph: bool = T
         film=film,
         integrator=integrator_settings(scene.haze),
         materials=library.materials(used_materials),
+        images=used_images(library.images.list(), library.materials(used_materials)),
         meshes=meshes,
         lights=lights,
         media=media,

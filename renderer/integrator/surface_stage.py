@@ -67,12 +67,14 @@ MAX_CROSSINGS = 256  # interfaces a path may pass before it is ended (guards ope
 
 
 @kernel
-def shade_surface(n, ps, prim, bu, bv, geo, mt, lt, env_light, sun_rows, cfg, L, sh, s, cam, mist):
+def shade_surface(n, ps, prim, bu, bv, geo, mt, override, lt, env_light, sun_rows, cfg, L, sh, s, cam, mist):
     """Shade the closest hits of paths 0..n-1 that are PATH_ACTIVE (prim -1 = escaped;
     ps.tmax holds the hit distance): emission, next-event estimation, BSDF sampling, Russian
     roulette. Writes new rays into ps, kills finished paths, appends shadow rays to sh from
     index s. cam (the camera tuple) and mist (start, 1 / depth, falloff) serve the Mist
-    pass. Returns the number of shadow rays written in all."""
+    pass. override[i] >= 0 (renderer.shading.stage, only in scenes with shader programs;
+    empty otherwise) is the row of mt to shade path i with instead of its triangle's
+    material. Returns the number of shadow rays written in all."""
     max_bounces = cfg[CFG_MAX_BOUNCES]
     sampling = cfg[CFG_SAMPLING]
     transparent = cfg[CFG_FILM_TRANSPARENT] != 0
@@ -124,6 +126,8 @@ def shade_surface(n, ps, prim, bu, bv, geo, mt, lt, env_light, sun_rows, cfg, L,
         ng = load3(geo.ng, p)
         front = dot(d, ng) < 0.0
         m = geo.material[p]
+        if i < override.shape[0] and override[i] >= 0:
+            m = override[i]
 
         light = geo.light[p]
         if light >= 0:

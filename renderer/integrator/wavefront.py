@@ -17,6 +17,7 @@ from ..lights.table import kernel_arrays
 from ..media.layout import dda_scratch
 from ..media.stack_phase import phase_eval, sample_phase
 from ..scene import IntegratorSettings
+from ..shading.stage import FIELD_OFFSETS, scratch_table, shade_programs
 from . import stages as K
 from .aovs import aov_surface
 from .config import CFG_AOVS, make_config
@@ -89,8 +90,23 @@ class Tracer:
         self.remaining = np.zeros(2 * self.batch, np.float32)
         self.lt = kernel_arrays(cs.lights)
         self.init_stack = camera_medium_stack(cs, self.isect)
+        self._shader_programs(cs)
         self.stats = {"rays": 0, "shadow_rays": 0, "embree_s": 0.0}
         self.compile_seconds = warm_up(self.kernel_calls(), on_compile)
+
+    def _shader_programs(self, cs: CompiledScene) -> None:
+        """Scratch for the shader program stage (renderer.shading.stage), only in scenes
+        with programs; otherwise the surface stage gets an empty override and the scene's
+        own material table."""
+        self.mt = cs.materials
+        self.override = np.zeros(0, np.int32)
+        self.regs = np.zeros(1, np.float32)
+        self.max_lobes = 0
+        if cs.shading is not None:
+            self.max_lobes = cs.shading.max_lobes
+            self.mt = scratch_table(cs.materials, self.batch, self.max_lobes)
+            self.override = np.full(self.batch, -1, np.int32)
+            self.regs = np.zeros(cs.shading.max_registers, np.float32)
 
     def kernel_calls(self) -> list[KernelCall]:
         """Every kernel call a batch of this scene makes, with arguments of the types it
@@ -101,12 +117,15 @@ class Tracer:
         calls: list[KernelCall] = self.subtree_calls() + [
             (K.start_paths, (ps, self.pixel_of_pid, cs.camera, cs.width, cs.height, 0, 0, 1, 0,
                              self.init_stack)),
-            (K.shade_surface, (1, ps, prim, bu, bv, cs.geometry, cs.materials, lt, cs.lights.env_light,
-                               cs.lights.sun_rows, cfg, L, sh, 0, cs.camera, self.mist)),
+            (K.shade_surface, (1, ps, prim, bu, bv, cs.geometry, self.mt, self.override, lt,
+                               cs.lights.env_light, cs.lights.sun_rows, cfg, L, sh, 0, cs.camera, self.mist)),
             (K.compact_paths, (1, ps)),
             (K.splat, (1, L, self.pixel_of_pid, np.zeros((1, 3), np.float64), np.zeros((1, 3), np.float64),
                        np.zeros(1, np.int64), np.zeros(1, np.int64), np.zeros(1, np.float64), self.no_aov)),
         ]
+        if cs.shading is not None:
+            calls.append((shade_programs, (1, ps, prim, bu, bv, cs.geometry, cs.shading.arrays, self.mt,
+                                           self.regs, self.override, self.max_lobes, FIELD_OFFSETS)))
         if cs.has_media:
             calls.append((K.shade_media, (1, ps, prim, lt, self.md, cfg, L, sh, self.nb, self.grid_md)))
         if cs.needs_shadow_walk:
@@ -171,7 +190,10 @@ class Tracer:
             if cs.has_media:
                 count = K.shade_media(live, ps, prim, self.lt, self.md, self.cfg, self.L, sh, self.nb,
                                       self.grid_md)
-            count = K.shade_surface(live, ps, prim, bu, bv, cs.geometry, cs.materials, self.lt,
+            if cs.shading is not None:
+                shade_programs(live, ps, prim, bu, bv, cs.geometry, cs.shading.arrays, self.mt, self.regs,
+                               self.override, self.max_lobes, FIELD_OFFSETS)
+            count = K.shade_surface(live, ps, prim, bu, bv, cs.geometry, self.mt, self.override, self.lt,
                                     cs.lights.env_light, cs.lights.sun_rows, self.cfg, self.L, sh, count,
                                     cs.camera, self.mist)
             if count:

@@ -1,0 +1,207 @@
+"""The shader program interpreter: runs material m's program (program.py) at one shading
+point and leaves its results in the register file `regs`.
+
+`st` is the scene's shading table tuple (table.py): (progs, code, init, data, binds,
+corner, texels, images). A point is given by its triangle p, barycentrics (b0, b1, b2),
+world position x, shading normal n (facing the side the ray came from, as Cycles' sd->N),
+the direction wi toward where the ray came from, and whether the back face was hit;
+corner attributes are interpolated with the barycentrics Embree returns
+(hit = b0 v0 + b1 v1 + b2 v2).
+"""
+
+import math
+
+from renderer.kernels import inline_kernel
+
+from .color import fresnel, hsv_to_rgb, hue_saturation_value, layer_weight, rgb_to_hsv
+from .image import image_lookup
+from .math_ops import math_op, mix_color, vector_op
+from .noise import noise_texture_3d
+from .program import I_A, I_B, I_C, I_D, I_DST, I_OP, I_P0, I_P1, I_P2, OP
+from .table import P_CODE, P_INIT, P_NCODE, P_NREGS
+from .textures import checker, gradient, mapping, ramp_lookup
+
+ATTRIBUTE, POSITION, NORMAL = OP["attribute"], OP["position"], OP["normal"]
+MATH, VECTOR_MATH, MIX, MIX_FLOAT = OP["math"], OP["vector_math"], OP["mix"], OP["mix_float"]
+MAPPING, CHECKER, IMAGE, RAMP, CURVE = OP["mapping"], OP["checker"], OP["image"], OP["ramp"], OP["curve"]
+COMBINE, COPY, INVERT, RGB_TO_BW = OP["combine"], OP["copy"], OP["invert"], OP["rgb_to_bw"]
+CLAMP, GRADIENT, GAMMA, BRIGHT_CONTRAST = OP["clamp"], OP["gradient"], OP["gamma"], OP["bright_contrast"]
+MAP_RANGE, NOISE, HSV, HSV_CONVERT = OP["map_range"], OP["noise"], OP["hsv"], OP["hsv_convert"]
+FRESNEL, LAYER_WEIGHT = OP["fresnel"], OP["layer_weight"]
+
+
+@inline_kernel
+def _v(regs, r):
+    return (float(regs[r]), float(regs[r + 1]), float(regs[r + 2]))
+
+
+@inline_kernel
+def _put3(regs, r, v):
+    regs[r] = v[0]
+    regs[r + 1] = v[1]
+    regs[r + 2] = v[2]
+
+
+@inline_kernel
+def _attribute(corner, p, b0, b1, b2, column, width):
+    c = corner[p]
+    out0 = b0 * c[0, column] + b1 * c[1, column] + b2 * c[2, column]
+    out1 = 0.0
+    out2 = 0.0
+    if width > 1:
+        out1 = b0 * c[0, column + 1] + b1 * c[1, column + 1] + b2 * c[2, column + 1]
+    if width > 2:
+        out2 = b0 * c[0, column + 2] + b1 * c[1, column + 2] + b2 * c[2, column + 2]
+    return (out0, out1, out2)
+
+
+@inline_kernel
+def run_program(st, m, regs, p, b0, b1, b2, x, n, wi, back):  # noqa: C901 - the interpreter's dispatch
+    progs, code, init, data, _, corner, texels, images = st
+    r0 = progs[m, P_INIT]
+    for k in range(progs[m, P_NREGS]):
+        regs[k] = init[r0 + k]
+    c0 = progs[m, P_CODE]
+    for j in range(c0, c0 + progs[m, P_NCODE]):
+        ins = code[j]
+        op, dst, a, b, c = ins[I_OP], ins[I_DST], ins[I_A], ins[I_B], ins[I_C]
+        if op == ATTRIBUTE:
+            _put3(regs, dst, _attribute(corner, p, b0, b1, b2, ins[I_P0], ins[I_P1]))
+        elif op == POSITION:
+            _put3(regs, dst, x)
+        elif op == NORMAL:
+            _put3(regs, dst, n)
+        elif op == MATH:
+            r = math_op(ins[I_P0], float(regs[a]), float(regs[b]), float(regs[c]))
+            regs[dst] = min(max(r, 0.0), 1.0) if ins[I_P1] else r
+        elif op == VECTOR_MATH:
+            v, s = vector_op(ins[I_P0], _v(regs, a), _v(regs, b), _v(regs, c), float(regs[ins[I_D]]))
+            if ins[I_P1]:
+                regs[dst] = s
+            else:
+                _put3(regs, dst, v)
+        elif op == MIX:
+            t = float(regs[a])
+            if ins[I_P1]:
+                t = min(max(t, 0.0), 1.0)
+            v = mix_color(ins[I_P0], t, _v(regs, b), _v(regs, c))
+            if ins[I_P2]:
+                v = (min(max(v[0], 0.0), 1.0), min(max(v[1], 0.0), 1.0), min(max(v[2], 0.0), 1.0))
+            _put3(regs, dst, v)
+        elif op == MIX_FLOAT:
+            t = float(regs[a])
+            if ins[I_P1]:
+                t = min(max(t, 0.0), 1.0)
+            regs[dst] = (1.0 - t) * regs[b] + t * regs[c]
+        elif op == MAPPING:
+            _put3(regs, dst, mapping(ins[I_P0], _v(regs, a), _v(regs, b), _v(regs, c), _v(regs, ins[I_D])))
+        elif op == CHECKER:
+            s = float(regs[ins[I_D]])
+            q = _v(regs, a)
+            f = checker((q[0] * s, q[1] * s, q[2] * s))
+            _put3(regs, dst, _v(regs, b) if f == 1.0 else _v(regs, c))
+            regs[dst + 3] = f
+        elif op == IMAGE:
+            q = _v(regs, a)
+            rgba = image_lookup(texels, images, ins[I_P0], q[0], q[1], ins[I_P1] != 0, ins[I_P2])
+            _put3(regs, dst, (rgba[0], rgba[1], rgba[2]))
+            regs[dst + 3] = rgba[3]
+        elif op == RAMP:
+            f = float(regs[a])
+            for ch in range(4):
+                regs[dst + ch] = ramp_lookup(data, ins[I_P0], 4, ch, f, ins[I_P1] != 0)
+        elif op == CURVE:
+            # RGB Curves: per channel the channel's curve, then the combined (C) curve;
+            # the factor mixes with the input colour (svm_node_curves).
+            col = _v(regs, b)
+            t = float(regs[a])
+            for ch in range(3):
+                y = ramp_lookup(data, ins[I_P0] + (ch + 1) * 256, 1, 0, col[ch], True)
+                y = ramp_lookup(data, ins[I_P0], 1, 0, y, True)
+                regs[dst + ch] = (1.0 - t) * col[ch] + t * y
+        elif op == COMBINE:
+            v = (float(regs[a]), float(regs[b]), float(regs[c]))
+            _put3(regs, dst, v)
+        elif op == COPY:
+            for ch in range(ins[I_P0]):
+                regs[dst + ch] = regs[a + ch]
+        elif op == INVERT:
+            t = float(regs[a])
+            col = _v(regs, b)
+            for ch in range(3):
+                regs[dst + ch] = t * (1.0 - col[ch]) + (1.0 - t) * col[ch]
+        elif op == RGB_TO_BW:
+            regs[dst] = 0.2126 * regs[a] + 0.7152 * regs[a + 1] + 0.0722 * regs[a + 2]
+        elif op == CLAMP:
+            lo, hi = float(regs[b]), float(regs[c])
+            if ins[I_P0] == 1 and lo > hi:
+                lo, hi = hi, lo
+            regs[dst] = min(max(float(regs[a]), lo), hi)
+        elif op == GRADIENT:
+            regs[dst] = gradient(ins[I_P0], _v(regs, a))
+        elif op == GAMMA:
+            g = float(regs[b])
+            for ch in range(3):
+                v = float(regs[a + ch])
+                regs[dst + ch] = v ** g if v > 0.0 else v
+        elif op == BRIGHT_CONTRAST:
+            ka = 1.0 + regs[c]
+            kb = regs[b] - regs[c] * 0.5
+            for ch in range(3):
+                regs[dst + ch] = max(ka * regs[a + ch] + kb, 0.0)
+        elif op == HSV:
+            _put3(regs, dst, hue_saturation_value(_v(regs, a), float(regs[b]), float(regs[b + 1]),
+                                                  float(regs[b + 2]), float(regs[b + 3])))
+        elif op == HSV_CONVERT:
+            _put3(regs, dst, hsv_to_rgb(_v(regs, a)) if ins[I_P0] else rgb_to_hsv(_v(regs, a)))
+        elif op == FRESNEL:
+            nn = _v(regs, b)
+            regs[dst] = fresnel(float(regs[a]), wi[0] * nn[0] + wi[1] * nn[1] + wi[2] * nn[2], back)
+        elif op == LAYER_WEIGHT:
+            nn = _v(regs, b)
+            regs[dst] = layer_weight(float(regs[a]), wi[0] * nn[0] + wi[1] * nn[1] + wi[2] * nn[2], back,
+                                     ins[I_P0] != 0)
+        elif op == NOISE:
+            q = _v(regs, a)
+            s = float(regs[b])
+            value, col = noise_texture_3d(q[0] * s, q[1] * s, q[2] * s, float(regs[b + 1]),
+                                          float(regs[b + 2]), float(regs[b + 3]), float(regs[b + 4]),
+                                          ins[I_P0] != 0)
+            regs[dst] = value
+            _put3(regs, dst + 1, col)
+        elif op == MAP_RANGE:
+            regs[dst] = _map_range(float(regs[a]), float(regs[b]), float(regs[b + 1]), float(regs[b + 2]),
+                                   float(regs[b + 3]), float(regs[b + 4]), ins[I_P0], ins[I_P1] != 0)
+
+
+@inline_kernel
+def _smoothstep(lo, hi, x, smoother):
+    if x < lo:
+        return 0.0
+    if x >= hi:
+        return 1.0
+    t = (x - lo) / (hi - lo)
+    return t * t * t * (t * (t * 6.0 - 15.0) + 10.0) if smoother else (3.0 - 2.0 * t) * t * t
+
+
+@inline_kernel
+def _map_range(v, from_min, from_max, to_min, to_max, steps, kind, clamp):
+    """Map Range (float): Linear 0, Stepped 1, Smooth Step 2, Smoother Step 3, as
+    svm_node_map_range; Clamp applies to Linear and Stepped (Blender adds a clamp node)."""
+    if from_max == from_min:
+        return 0.0
+    if kind >= 2:
+        smoother = kind == 3
+        if from_min > from_max:
+            f = 1.0 - _smoothstep(from_max, from_min, v, smoother)
+        else:
+            f = _smoothstep(from_min, from_max, v, smoother)
+        return to_min + f * (to_max - to_min)
+    f = (v - from_min) / (from_max - from_min)
+    if kind == 1:
+        f = math.floor(f * (steps + 1.0)) / steps if steps > 0.0 else 0.0
+    r = to_min + f * (to_max - to_min)
+    if clamp:
+        lo, hi = min(to_min, to_max), max(to_min, to_max)
+        r = min(max(r, lo), hi)
+    return r

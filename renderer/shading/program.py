@@ -1,0 +1,98 @@
+"""A shader program: the varying part of a material's node tree as a flat list of
+operations over a register file, in the spirit of Cycles' SVM (kernel/svm/svm.h).
+
+Registers are float32 scalars; a vector or colour takes three consecutive registers. The
+exporter folds every constant input into the initial register values, so an operation
+only names registers. An instruction is one int32 row of INSTR: its opcode, destination
+register, up to five source registers (a..e) and three integer parameters (i0..i2, e.g.
+which Math operation, or where a table starts in the program's constant data).
+
+Bindings say what the program drives: after it runs, each binding writes registers into
+a field of one of the material's lobes (renderer.bsdfs.layout.LOBE), either setting the
+field (BIND_SET) or scaling it by one scalar register (BIND_SCALE, Mix Shader factors).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from renderer.layout import Layout
+
+INSTR = Layout("instr", [("op", 1), ("dst", 1), ("a", 1), ("b", 1), ("c", 1), ("d", 1), ("e", 1),
+                         ("i0", 1), ("i1", 1), ("i2", 1)])
+I_OP, I_DST = INSTR.offset("op"), INSTR.offset("dst")
+I_A, I_B, I_C, I_D, I_E = (INSTR.offset(f) for f in "abcde")
+I_P0, I_P1, I_P2 = INSTR.offset("i0"), INSTR.offset("i1"), INSTR.offset("i2")
+
+# Opcodes, by name (the exporter emits OP["..."]).
+OPCODES = (
+    "attribute",   # dst(3) = corner attribute i0 (i1 components) interpolated at the hit
+    "position",    # dst(3) = world-space hit point
+    "normal",      # dst(3) = world-space shading normal (front side)
+    "math",        # dst = Math node operation i0 of a, b, c; i1 = clamp
+    "vector_math",  # dst(3 or 1) = Vector Math operation i0 of a, b, c (vectors), d (scale)
+    "mix",         # dst(3) = Mix (colour) blend i0 of b, c by factor a; i1 = clamp factor, i2 = clamp result
+    "mix_float",   # dst = mix of b, c by factor a (scalars; the vector Mix uses it per component)
+    "mapping",     # dst(3) = Mapping type i0 of vector a, location b, rotation c, scale d
+    "checker",     # dst(3) colour, dst+3 factor: Checker of vector a, colours b c, scale d
+    "image",       # dst(3) colour, dst+3 alpha: image i0 at vector a; i1 interpolation, i2 extension
+    "ramp",        # dst(3) colour, dst+3 alpha: 256-entry RGBA table at data[i0], factor a; i1 interpolate
+    "curve",       # dst(3): RGB Curves tables at data[i0] (4 x 256 RGB: C, R, G, B), factor a, colour b
+    "combine",     # dst(3) = (a, b, c)
+    "copy",        # dst = a (i0 components)
+    "invert",      # dst(3) = mix(colour b, 1 - b, factor a)
+    "rgb_to_bw",   # dst = Rec. 709 luminance of a
+    "clamp",       # dst = clamp(a, b, c); i0 = 0 min-max, 1 range
+    "map_range",   # dst = Map Range (float) of a; b..b+4 = from min, from max, to min, to max, steps;
+                   # i0 type (names.MAP_RANGE_TYPES), i1 clamp
+    "gradient",    # dst = Gradient texture type i0 of vector a (factor; the colour is the same)
+    "gamma",       # dst(3) = colour a ^ gamma b
+    "bright_contrast",  # dst(3) = Bright/Contrast of colour a, bright b, contrast c
+    "hsv",         # dst(3) = Hue/Saturation/Value of colour a: b..b+3 = hue, saturation, value, factor
+    "hsv_convert",  # dst(3) = colour a to HSV (i0 0) or HSV to RGB (i0 1)
+    "fresnel",     # dst = Fresnel of IOR a with normal b (3), the view direction and the face side
+    "layer_weight",  # dst = Layer Weight of blend a with normal b: i0 0 Fresnel, 1 Facing
+    "noise",       # dst factor, dst+1..3 colour: Noise (3D fBM) of vector a; b..b+4 = scale,
+                   # detail, roughness, lacunarity, distortion; i0 normalize
+)
+OP = {name: code for code, name in enumerate(OPCODES)}
+
+# Lobe fields a binding may drive, and how.
+BIND_FIELDS = ("weight", "color", "roughness", "ior", "tint")
+BIND = Layout("bind", [("lobe", 1), ("field", 1), ("width", 1), ("reg", 1), ("mode", 1)])
+BIND_SET, BIND_SCALE = 0, 1
+
+INTERPOLATIONS = ("closest", "linear", "cubic")
+EXTENSIONS = ("repeat", "extend", "clip", "mirror")
+
+
+@dataclass
+class ImageTexture:
+    """Pixels of one image as Cycles samples them: straight alpha, row 0 at the bottom
+    (v = 0), as Blender stores them; scene-linear, or with `srgb` sRGB-encoded values that
+    are decoded after interpolation (Cycles keeps 8-bit sRGB images so: COMPRESS_AS_SRGB)."""
+
+    name: str
+    pixels: np.ndarray  # (H, W, 4) float32
+    srgb: bool = False
+
+
+@dataclass
+class ShaderProgram:
+    """The varying part of one material (see the module docstring).
+
+    code (I, INSTR.size) int32; registers (R,) float32, the initial register file (folded
+    constants); data (D,) float32, tables (colour ramps, curves); bindings (B, BIND.size)
+    int32; attributes: names of the corner attributes `attribute` operations read (their
+    i0 indexes this list: "uv:<map>" UV maps, "generated", "object", "color:<name>");
+    images: names of the scene's ImageTextures `image` operations read (their i0 indexes it).
+    """
+
+    code: np.ndarray
+    registers: np.ndarray
+    bindings: np.ndarray
+    data: np.ndarray = field(default_factory=lambda: np.zeros(0, np.float32))
+    attributes: list[str] = field(default_factory=list)
+    images: list[str] = field(default_factory=list)
