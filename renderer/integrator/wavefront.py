@@ -152,10 +152,10 @@ class Tracer:
         cs, lt, v = self.cs, self.lt, (0.0, 0.0, 1.0)
         m, light, tri = np.int32(0), 0, np.int32(0)
         calls: list[KernelCall] = [
-            (bsdf_eval, (cs.materials, m, True, v, v)),
-            (bsdf_sample, (cs.materials, m, True, v, 0.5, 0.5, 0.5, 0.5)),
+            (bsdf_eval, (self.mt, m, True, v, v)),
+            (bsdf_sample, (self.mt, m, True, v, 0.5, 0.5, 0.5, 0.5)),
             # Compiled into shade_surface with or without passes (L's type is the same).
-            (aov_surface, (self.L, m, cs.materials, m, True, v, v, m, v, cs.camera, self.mist)),
+            (aov_surface, (self.L, m, self.mt, m, True, v, v, m, v, cs.camera, self.mist)),
             (connect_light, (lt, light, v, v, 0.5, 0.5)),
             (triangle_light_pdf, (lt, tri, v, v, 1.0)),
             (escaped_radiance, (lt, light, cs.lights.sun_rows, v)),
