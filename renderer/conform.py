@@ -32,6 +32,7 @@ ARRAY_DTYPES: dict[str, np.dtype] = {
     "density": np.dtype(np.float32),
     "flame": np.dtype(np.float32),
     "temperature": np.dtype(np.float32),
+    "radiance_map": np.dtype(np.float32),
 }
 # Transforms are 16 numbers: written inline in the JSON, where a person can read them.
 MATRIX_FIELDS = frozenset({"to_world"})

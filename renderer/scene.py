@@ -53,6 +53,8 @@ PROJECTIONS: dict[str, int] = {
     "fisheye_equisolid": 4,
     "mirrorball": 5,
 }
+# How an environment map is read between pixel centres (Cycles' image interpolations).
+ENV_INTERPOLATIONS: dict[str, int] = {"linear": 0, "closest": 1}
 SAMPLING_MODES = ("mis", "nee", "bsdf")
 TRANSMITTANCE_MODES = ("ratio", "delta")
 DISTANCE_SAMPLING_MODES = ("spectral_mis", "uniform")
@@ -233,7 +235,19 @@ LIGHT_TYPES: dict[str, type] = {"point": PointLight, "spot": SpotLight, "sun": S
 
 @dataclass
 class Environment:
-    radiance: RGB = (0.0, 0.0, 0.0)  # constant radiance from every direction at infinity
+    """Radiance arriving from infinity: `radiance` from every direction, or, with a
+    `radiance_map`, the map's radiance times `radiance` (Background strength x colour).
+
+    radiance_map (H, W, 3) float32 >= 0: an equirectangular map with Cycles' mapping (u =
+    1/2 looks down the map's +X, row 0 is the bottom, the top row the zenith), read with
+    `interpolation`; `to_world` (4, 4) turns the map's frame into the world (a rotation or
+    reflection only; the last column is ignored). See renderer.lights.environment.
+    """
+
+    radiance: RGB = (0.0, 0.0, 0.0)  # W/(m^2 sr); with a map, its tint
+    radiance_map: np.ndarray | None = None  # (H, W, 3) float32 radiance, W/(m^2 sr)
+    interpolation: str = "linear"  # an ENV_INTERPOLATIONS word
+    to_world: np.ndarray = field(default_factory=lambda: np.eye(4))  # (4, 4) float64, map -> world
 
 
 @dataclass

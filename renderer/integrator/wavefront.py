@@ -97,13 +97,14 @@ class Tracer:
             (K.start_paths, (ps, self.pixel_of_pid, cs.camera, cs.width, cs.height, 0, 0, 1, 0,
                              self.init_stack)),
             (K.shade_surface, (1, ps, prim, bu, bv, cs.geometry, cs.materials, lt, cs.lights.env_light,
-                               cs.lights.sun_rows, cfg, L, sh, 0, cs.camera, self.mist)),
+                               cs.lights.sun_rows, cs.environment, cfg, L, sh, 0, cs.camera, self.mist)),
             (K.compact_paths, (1, ps)),
             (K.splat, (1, L, self.pixel_of_pid, np.zeros((1, 3), np.float64), np.zeros((1, 3), np.float64),
                        np.zeros(1, np.int64), np.zeros(1, np.int64), np.zeros(1, np.float64), self.no_aov)),
         ]
         if cs.has_media:
-            calls.append((K.shade_media, (1, ps, prim, lt, self.md, cfg, L, sh, self.nb, self.grid_md)))
+            calls.append((K.shade_media, (1, ps, prim, lt, cs.environment, self.md, cfg, L, sh, self.nb,
+                                          self.grid_md)))
         if cs.needs_shadow_walk:
             calls.append((K.walk_shadows, (1, sh, prim, np.zeros(1, np.float32), self.remaining, cs.geometry,
                                            cs.materials, self.md, cfg, L, self.grid_md)))
@@ -135,10 +136,11 @@ class Tracer:
             self.stats["rays"] += live
             count = 0
             if cs.has_media:
-                count = K.shade_media(live, ps, prim, self.lt, self.md, self.cfg, self.L, sh, self.nb,
-                                      self.grid_md)
+                count = K.shade_media(live, ps, prim, self.lt, cs.environment, self.md, self.cfg, self.L, sh,
+                                      self.nb, self.grid_md)
             count = K.shade_surface(live, ps, prim, bu, bv, cs.geometry, cs.materials, self.lt,
-                                    cs.lights.env_light, cs.lights.sun_rows, self.cfg, self.L, sh, count,
+                                    cs.lights.env_light, cs.lights.sun_rows, cs.environment, self.cfg, self.L,
+                                    sh, count,
                                     cs.camera, self.mist)
             if count:
                 self._shadows(count)
