@@ -151,8 +151,10 @@ class Lobe:
                         roughness 0).
       "rough_conductor" GGX microfacet reflection, alpha = roughness^2, reflectance per
                         `fresnel`, visible-normal sampling.
-      "plastic"        Cycles' Principled dielectric: a GGX specular layer (ior, roughness)
-                        over a diffuse base of albedo `color` weighted by 1 - E(wo).
+      "plastic"        Cycles' Principled dielectric: a GGX specular layer (ior, roughness,
+                        specular tint `tint`) over a diffuse base of albedo `color` weighted
+                        by 1 - E(wo).
+      "dielectric" reflection is tinted by `tint`, refraction by `color`.
 
     fresnel (conductors only):
       "constant"       reflectance = `color` at every angle (Cycles' Glossy BSDF).
@@ -168,7 +170,10 @@ class Lobe:
     ior: float = 1.5  # > 0; the medium behind the front face over the one in front
     sides: str = "both"  # "front", "back" or "both": faces on which the lobe exists
     fresnel: str = "constant"  # conductors: "constant" or "f82"
-    tint: RGB = (1.0, 1.0, 1.0)  # conductors with fresnel "f82": edge tint in [0, 1]
+    # conductors with fresnel "f82": edge tint; plastic: specular tint (F0 x tint); dielectric:
+    # reflection tint (`color` tints the refraction). In [0, 1].
+    tint: RGB = (1.0, 1.0, 1.0)
+    multiscatter: bool = False  # rough_conductor, plastic: Cycles' Multiscatter GGX compensation
 
 
 @dataclass

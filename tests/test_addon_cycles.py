@@ -35,6 +35,7 @@ SIZE = 64
 SAMPLES = {
     "fog_cornell": (64, 512),
     "principled": (32, 128),
+    "principled_ms": (32, 128),
     "point": (8, 32),
     "spot": (16, 64),
     "area": (16, 64),
@@ -104,11 +105,30 @@ def principled_stage():
     return scene
 
 
+def principled_ms_stage():
+    """Principled BSDFs as artists leave them (Multiscatter GGX, the default) with the three
+    former departures: rough metal (energy compensation), a specular-tinted dielectric and
+    coloured glass (transmission tint), under a constant sky."""
+    scene = C.clear_scene()
+    H.world_color(scene, (0.6, 0.65, 0.7), 1.0)
+    H.floor_plane("Floor", 3.0, H.principled_material("Floor", Base_Color=(0.5, 0.5, 0.45), Roughness=0.6))
+    H.uv_sphere("Metal", (-0.9, 0.2, 0.45), 0.45, H.principled_material(
+        "Metal", Base_Color=(0.9, 0.6, 0.3), Metallic=1.0, Roughness=0.7, Specular_Tint=(0.8, 0.9, 1.0)))
+    H.uv_sphere("Plastic", (0.2, 0.4, 0.45), 0.45, H.principled_material(
+        "Plastic", Base_Color=(0.2, 0.4, 0.8), Roughness=0.4, Specular_Tint=(1.0, 0.4, 0.2)))
+    H.uv_sphere("Glass", (1.1, -0.3, 0.35), 0.35, H.principled_material(
+        "Glass", Base_Color=(0.9, 0.5, 0.3), Transmission_Weight=1.0, Roughness=0.0, IOR=1.45))
+    setup_view(scene, (0.0, -4.0, 1.8), (70.0, 0.0, 0.0))
+    return scene
+
+
 def build(name):
     if name == "fog_cornell":
         return C.build_fog_cornell(SIZE, SIZE, max_bounces=MAX_BOUNCES)
     if name == "principled":
         return principled_stage()
+    if name == "principled_ms":
+        return principled_ms_stage()
     return light_stage(name)
 
 

@@ -1,7 +1,7 @@
 """A world lit by an HDRI with a small, very bright sun: Haze agrees with Cycles.
 
 One Blender process writes an equirectangular EXR (a coloured sky, a dim ground and a 2x2
-pixel sun about 1700 times brighter than the sky), lights a floor, a diffuse ball and a
+pixel sun of radiance 900 over a sky of 0.04 to 1.1), lights a floor, a diffuse ball and a
 rough metal ball with it through Texture Coordinate > Mapping (rotated) > Environment
 Texture > Background (Strength 1.5), and renders K independent images with Cycles and with
 Haze (as tests/test_addon_cycles.py, whose statistics it uses). The sky is in view, so the

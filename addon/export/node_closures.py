@@ -36,11 +36,13 @@ class Term:
     anisotropy: float = 0.0
     fresnel: str = "constant"  # conductors: "constant" (colour) or "f82" (F0 = colour, edge tint)
     tint: tuple[float, float, float] = (1.0, 1.0, 1.0)
+    multiscatter: bool = False  # GGX lobes: Cycles' Multiscatter GGX energy compensation
 
     def same_closure(self, other: Term) -> bool:
         return (
             self.kind == other.kind
             and self.fresnel == other.fresnel
+            and self.multiscatter == other.multiscatter
             and np.allclose(self.weight, other.weight, rtol=1e-6, atol=1e-9)
             and np.allclose(self.color, other.color, rtol=1e-6, atol=1e-9)
             and np.allclose(self.tint, other.tint, rtol=1e-6, atol=1e-9)
@@ -145,10 +147,12 @@ def reflection_kind(roughness: float) -> str:
     return "conductor" if roughness <= 0.0 else "rough_conductor"
 
 
-def warn_ignored_distribution(read: Inputs, node) -> None:
+def warn_ignored_distribution(read: Inputs, node) -> bool:
+    """Whether the node's microfacets are Multiscatter GGX (others are rendered as GGX)."""
     distribution = getattr(node, "distribution", "GGX")
     if distribution not in {"GGX", "MULTI_GGX"}:
         read.warn(f"{distribution} microfacets are rendered as GGX")
+    return distribution == "MULTI_GGX"
 
 
 def shader_diffuse(read: Inputs) -> list[Term]:
@@ -159,12 +163,12 @@ def shader_diffuse(read: Inputs) -> list[Term]:
 
 def shader_glossy(read: Inputs) -> list[Term]:
     node = read.node
-    warn_ignored_distribution(read, node)
+    multiscatter = warn_ignored_distribution(read, node)
     if read("Anisotropy") != 0.0:
         read.warn("Anisotropy is ignored")
     roughness = saturate(read("Roughness"))
     return [Term(reflection_kind(roughness), np.ones(3), color=rgb(np.maximum(read("Color"), 0.0)),
-                 roughness=roughness)]
+                 roughness=roughness, multiscatter=multiscatter)]
 
 
 def conductor_reflectance(cos: float, ior: np.ndarray, extinction: np.ndarray) -> np.ndarray:
@@ -197,7 +201,7 @@ def shader_metallic(read: Inputs) -> list[Term]:
     """Cycles' Metallic BSDF: the F82-tint Fresnel of Base Color and Edge Tint, or (Physical
     Conductor) the exact Fresnel of a complex index, here fitted by an F82-tint curve."""
     node = read.node
-    warn_ignored_distribution(read, node)
+    multiscatter = warn_ignored_distribution(read, node)
     if read("Anisotropy") != 0.0:
         read.warn("Anisotropy is ignored")
     if node.fresnel_type == "PHYSICAL_CONDUCTOR":
@@ -207,7 +211,7 @@ def shader_metallic(read: Inputs) -> list[Term]:
         tint = np.clip(read("Edge Tint"), 0.0, 1.0)
     roughness = saturate(read("Roughness"))
     return [Term(reflection_kind(roughness), np.ones(3), color=rgb(f0), roughness=roughness, fresnel="f82",
-                 tint=rgb(tint))]
+                 tint=rgb(tint), multiscatter=multiscatter)]
 
 
 def shader_glass(read: Inputs) -> list[Term]:
@@ -215,7 +219,8 @@ def shader_glass(read: Inputs) -> list[Term]:
     if roughness > 0.0:
         read.warn(f"rough glass (Roughness {roughness:g}) is rendered as smooth glass")
     ior = max(read("IOR"), 1e-5)
-    return [Term("dielectric", np.ones(3), color=rgb(np.maximum(read("Color"), 0.0)), ior=ior)]
+    color = rgb(np.maximum(read("Color"), 0.0))
+    return [Term("dielectric", np.ones(3), color=color, ior=ior, tint=color)]  # tints both branches
 
 
 def shader_transparent(read: Inputs) -> list[Term]:
@@ -236,8 +241,7 @@ def principled_ignored_inputs(read: Inputs) -> list[str]:
         ("Anisotropic", read("Anisotropic") > 0.0),
         ("Thin Film Thickness", read("Thin Film Thickness") > 0.0),
         ("Diffuse Roughness", read("Diffuse Roughness") > 0.0),
-        ("Specular Tint (of the dielectric layer; metals use it)",
-         not np.allclose(read("Specular Tint"), 1.0) and read("Metallic") < 1.0),
+        ("Specular Tint above 1 (clamped to 1)", np.any(np.asarray(read("Specular Tint")) > 1.0)),
     ]
     return [name for name, ignored in checks if ignored]
 
@@ -254,12 +258,16 @@ def adjusted_specular_ior(ior: float, level: float) -> float:
 
 def shader_principled(read: Inputs) -> list[Term]:
     """Cycles' Principled BSDF (svm/closure.h) as Haze lobes: alpha, metal (F82-tint Fresnel of
-    Base Color and Specular Tint), glass, then the dielectric specular layer over diffuse
-    (Haze's "plastic")."""
+    Base Color and Specular Tint), glass (refraction tinted by sqrt(Base Color), reflection
+    untinted), then the dielectric specular layer (F0 x Specular Tint) over diffuse (Haze's
+    "plastic"). Multiscatter GGX (the node's default) compensates the metal's and the
+    layer's energy as Cycles does."""
     ignored = principled_ignored_inputs(read)
     if ignored:
         read.warn("ignored inputs: " + ", ".join(ignored))
     base = np.maximum(read("Base Color"), 0.0)
+    specular_tint = rgb(np.clip(read("Specular Tint"), 0.0, 1.0))
+    multiscatter = warn_ignored_distribution(read, read.node)
     metallic, alpha = saturate(read("Metallic")), saturate(read("Alpha"))
     roughness, transmission = saturate(read("Roughness")), saturate(read("Transmission Weight"))
     ior = max(read("IOR"), 1e-5)
@@ -274,7 +282,7 @@ def shader_principled(read: Inputs) -> list[Term]:
     if metallic > 0.0:
         terms.append(Term(reflection_kind(roughness), np.full(3, weight * metallic),
                           color=rgb(np.minimum(base, 1.0)), roughness=roughness, fresnel="f82",
-                          tint=rgb(np.clip(read("Specular Tint"), 0.0, 1.0))))
+                          tint=specular_tint, multiscatter=multiscatter))
         weight *= 1.0 - metallic
     if transmission > 0.0 and weight > 0.0:
         if roughness > 0.0:
@@ -285,7 +293,8 @@ def shader_principled(read: Inputs) -> list[Term]:
     if weight > 0.0:
         eta = adjusted_specular_ior(ior, max(read("Specular IOR Level"), 0.0))
         kind = "diffuse" if eta == 1.0 else "plastic"
-        terms.append(Term(kind, np.full(3, weight), color=rgb(base), roughness=roughness, ior=eta))
+        layer = {} if kind == "diffuse" else {"tint": specular_tint, "multiscatter": multiscatter}
+        terms.append(Term(kind, np.full(3, weight), color=rgb(base), roughness=roughness, ior=eta, **layer))
     return terms
 
 
