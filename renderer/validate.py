@@ -387,7 +387,9 @@ def _check_environment(env: Environment, path: str) -> None:
     _check_nonnegative_rgb(env.radiance, f"{path}.radiance")
     check_choice(env.interpolation, ENV_INTERPOLATIONS, f"{path}.interpolation", "interpolation")
     rotation = env.to_world[:3, :3]
-    orthogonal = np.allclose(rotation @ rotation.T, np.eye(3), rtol=0.0, atol=1e-5)
+    # An orthogonal matrix has no entry beyond +-1 (checked first, so the product cannot overflow).
+    bounded = bool(np.abs(rotation).max() <= 1.0 + 1e-5)
+    orthogonal = bounded and np.allclose(rotation @ rotation.T, np.eye(3), rtol=0.0, atol=1e-5)
     require(orthogonal, f"{path}.to_world", "must rotate (or reflect) only: its 3x3 part is not orthogonal")
     image = env.radiance_map
     if image is None:
