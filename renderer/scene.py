@@ -55,6 +55,8 @@ PROJECTIONS: dict[str, int] = {
 }
 # How an environment map is read between pixel centres (Cycles' image interpolations).
 ENV_INTERPOLATIONS: dict[str, int] = {"linear": 0, "closest": 1}
+# How an environment map's image covers the sphere (Cycles' Environment Texture projections).
+ENV_PROJECTIONS: dict[str, int] = {"equirectangular": 0, "mirror_ball": 1}
 SAMPLING_MODES = ("mis", "nee", "bsdf")
 TRANSMITTANCE_MODES = ("ratio", "delta")
 DISTANCE_SAMPLING_MODES = ("spectral_mis", "uniform")
@@ -243,15 +245,17 @@ class Environment:
     """Radiance arriving from infinity: `radiance` from every direction, or, with a
     `radiance_map`, the map's radiance times `radiance` (Background strength x colour).
 
-    radiance_map (H, W, 3) float32 >= 0: an equirectangular map with Cycles' mapping (u =
-    1/2 looks down the map's +X, row 0 is the bottom, the top row the zenith), read with
-    `interpolation`; `to_world` (4, 4) turns the map's frame into the world (a rotation or
-    reflection only; the last column is ignored). See renderer.lights.environment.
+    radiance_map (H, W, 3) float32 >= 0: an image in `projection`: equirectangular with
+    Cycles' mapping (u = 1/2 looks down the map's +X, row 0 is the bottom, the top row the
+    zenith) or Cycles' mirror ball (the ball seen from -Y), read with `interpolation`;
+    `to_world` (4, 4) turns the map's frame into the world (a rotation or reflection only;
+    the last column is ignored). See renderer.lights.environment.
     """
 
     radiance: RGB = (0.0, 0.0, 0.0)  # W/(m^2 sr); with a map, its tint
     radiance_map: np.ndarray | None = None  # (H, W, 3) float32 radiance, W/(m^2 sr)
     interpolation: str = "linear"  # an ENV_INTERPOLATIONS word
+    projection: str = "equirectangular"  # an ENV_PROJECTIONS word
     to_world: np.ndarray = field(default_factory=lambda: np.eye(4))  # (4, 4) float64, map -> world
 
 

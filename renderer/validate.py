@@ -21,6 +21,7 @@ from renderer.scene import (
     CONDUCTOR_KINDS,
     DISTANCE_SAMPLING_MODES,
     ENV_INTERPOLATIONS,
+    ENV_PROJECTIONS,
     FOV_AXES,
     FRESNEL_MODES,
     LIGHT_TYPES,
@@ -386,6 +387,7 @@ def _check_light(light: Any, path: str) -> None:
 def _check_environment(env: Environment, path: str) -> None:
     _check_nonnegative_rgb(env.radiance, f"{path}.radiance")
     check_choice(env.interpolation, ENV_INTERPOLATIONS, f"{path}.interpolation", "interpolation")
+    check_choice(env.projection, ENV_PROJECTIONS, f"{path}.projection", "projection")
     rotation = env.to_world[:3, :3]
     # An orthogonal matrix has no entry beyond +-1 (checked first, so the product cannot overflow).
     bounded = bool(np.abs(rotation).max() <= 1.0 + 1e-5)

@@ -4,8 +4,9 @@ One Blender process writes an equirectangular EXR (a coloured sky, a dim ground 
 pixel sun of radiance 900 over a sky of 0.04 to 1.1), lights a floor, a diffuse ball and a
 rough metal ball with it through Texture Coordinate > Mapping (rotated) > Environment
 Texture > Background (Strength 1.5), and renders K independent images with Cycles and with
-Haze (as tests/test_addon_cycles.py, whose statistics it uses). The sky is in view, so the
-direction mapping and the rotation are checked pixel by pixel as well as the lighting.
+Haze (as tests/test_addon_cycles.py, whose statistics it uses); then again with the same
+image read as a mirror ball. The sky is in view, so the direction mapping and the rotation
+are checked pixel by pixel as well as the lighting.
 
 It also prints each renderer's noise per sample, relMSE x spp (relMSE estimated from the
 spread of the K renders per pixel), and the seconds each took, for the README's figures;
@@ -27,7 +28,12 @@ pytestmark = [pytest.mark.bpy, pytest.mark.slow]
 
 RUNS = 4
 SIZE = 64
-CYCLES_SAMPLES, HAZE_SAMPLES = 32, 128
+# The same EXR read as an equirectangular map and as a mirror ball (the sun then lights the
+# scene from behind, up about 33 degrees): (Cycles, Haze) samples per run, chosen so that
+# noise on the compared image mean stays below a third of the 1 % tolerance (measured at
+# 32 and 128: 0.18 % equirectangular, 0.35 % for the mirror ball's rim-free columns).
+SAMPLES = {"EQUIRECTANGULAR": (32, 128), "MIRROR_BALL": (64, 256)}
+PROJECTIONS = tuple(SAMPLES)
 
 BODY = rf'''
 import math
@@ -57,7 +63,7 @@ def sky_pixels():
     return rgba
 
 
-def hdri_world(scene, path):
+def hdri_world(scene, path, projection):
     # Written as an artist's HDRI arrives: a linear EXR (scanlines top-down), loaded as
     # Linear Rec.709. (Saving a generated float image from Blender instead writes it
     # display-encoded and tags it sRGB, which Cycles and Blender then decode differently.)
@@ -70,6 +76,7 @@ def hdri_world(scene, path):
     texture = nodes.new("ShaderNodeTexEnvironment")
     texture.image = bpy.data.images.load(path)
     texture.image.colorspace_settings.name = "Linear Rec.709"
+    texture.projection = projection
     mapping = nodes.new("ShaderNodeMapping")
     mapping.inputs["Rotation"].default_value = (0.0, 0.0, math.radians(30.0))
     coords = nodes.new("ShaderNodeTexCoord")
@@ -79,9 +86,9 @@ def hdri_world(scene, path):
     scene.world = world
 
 
-def build(folder):
+def build(folder, projection):
     scene = C.clear_scene()
-    hdri_world(scene, os.path.join(folder, "sky.exr"))
+    hdri_world(scene, os.path.join(folder, "sky.exr"), projection)
     H.floor_plane("Floor", 3.0, C.diffuse_material("Floor", (0.6, 0.6, 0.6)))
     H.uv_sphere("Ball", (-0.6, 0.3, 0.5), 0.5, C.diffuse_material("Ball", (0.7, 0.4, 0.3)))
     H.uv_sphere("Metal", (0.7, 0.0, 0.45), 0.45, H.principled_material(
@@ -94,18 +101,22 @@ def build(folder):
 
 def main():
     H.enable_dev_addon()
-    folder = os.getcwd()
-    scene = build(folder)
-    paths = {{"cycles": [], "haze": []}}
-    seconds = {{}}
-    for engine, samples, configure in (("cycles", {CYCLES_SAMPLES}, H.configure_cycles),
-                                       ("haze", {HAZE_SAMPLES}, H.configure_haze)):
-        start = time.perf_counter()
-        for run in range(RUNS):
-            configure(scene, samples, 3, seed=run + 1)
-            paths[engine].append(H.render_exr(scene, f"{{folder}}/{{engine}}_{{run}}.exr"))
-        seconds[engine] = time.perf_counter() - start
-    return {{"paths": paths, "seconds": seconds}}
+    report = {{}}
+    for projection, (cycles_samples, haze_samples) in {SAMPLES!r}.items():
+        folder = os.path.join(os.getcwd(), projection)
+        os.makedirs(folder, exist_ok=True)
+        scene = build(folder, projection)
+        paths = {{"cycles": [], "haze": []}}
+        seconds = {{}}
+        for engine, samples, configure in (("cycles", cycles_samples, H.configure_cycles),
+                                           ("haze", haze_samples, H.configure_haze)):
+            start = time.perf_counter()
+            for run in range(RUNS):
+                configure(scene, samples, 3, seed=run + 1)
+                paths[engine].append(H.render_exr(scene, f"{{folder}}/{{engine}}_{{run}}.exr"))
+            seconds[engine] = time.perf_counter() - start
+        report[projection] = {{"paths": paths, "seconds": seconds}}
+    return report
 '''
 
 
@@ -127,11 +138,30 @@ def rel_mse_times_spp(images: np.ndarray, reference: np.ndarray, spp: int) -> fl
     return float((variance / (reference**2 + 1e-2)).mean() * spp)
 
 
-def test_hdri_world_agrees_with_cycles(renders):
+# Where the mirror ball's image is read at its rim (map directions within a few degrees of
+# +Y, which the ball reflects from its whole edge), Cycles and Haze differ: Haze clamps the
+# read at the image's border, Cycles extends the image its own way (not in the shipped
+# kernel source). The camera sees that direction in the sky at the frame's right edge
+# (columns 56-63, rows 8-39); the rest of the frame must agree.
+RIM_FREE_COLUMNS = slice(0, 48)
+
+
+@pytest.mark.parametrize("projection", PROJECTIONS)
+def test_hdri_world_agrees_with_cycles(renders, projection):
+    renders = renders[projection]
     haze, cycles = stack(renders["paths"]["haze"]), stack(renders["paths"]["cycles"])
     assert haze.shape == cycles.shape == (RUNS, SIZE, SIZE, 3)
     assert cycles.mean() > 0.05, "the reference image is black: the scene is broken"
     reference = np.concatenate([haze, cycles]).mean(axis=0)
-    print(f"relMSE x spp: Haze {rel_mse_times_spp(haze, reference, HAZE_SAMPLES):.4g}, "
-          f"Cycles {rel_mse_times_spp(cycles, reference, CYCLES_SAMPLES):.4g}; seconds {renders['seconds']}")
+    cycles_samples, haze_samples = SAMPLES[projection]
+    print(f"{projection} relMSE x spp: Haze {rel_mse_times_spp(haze, reference, haze_samples):.4g}, "
+          f"Cycles {rel_mse_times_spp(cycles, reference, cycles_samples):.4g}; seconds {renders['seconds']}")
+    if projection == "MIRROR_BALL":
+        haze, cycles = haze[:, :, RIM_FREE_COLUMNS], cycles[:, :, RIM_FREE_COLUMNS]
     assert_agree(compare_images(haze, cycles))
+
+
+@pytest.mark.xfail(strict=True, reason="the mirror ball's rim is read differently (see RIM_FREE_COLUMNS)")
+def test_mirror_ball_rim_matches_cycles(renders):
+    paths = renders["MIRROR_BALL"]["paths"]
+    assert_agree(compare_images(stack(paths["haze"]), stack(paths["cycles"])))

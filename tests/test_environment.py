@@ -16,7 +16,13 @@ from render_helpers import render_film
 from examples.scenes import quad
 from renderer.compile import compile_scene
 from renderer.errors import SceneError
-from renderer.lights.environment import environment_radiance, lookup, sample_environment, uv_to_direction
+from renderer.lights.environment import (
+    environment_radiance,
+    lookup,
+    mirror_ball_uv,
+    sample_environment,
+    uv_to_direction,
+)
 from renderer.lights.environment_map import build_environment
 from renderer.scene import Camera, Environment, IntegratorSettings, Lobe, Material, Mesh, Scene
 from renderer.scene import Film as FilmSettings
@@ -96,6 +102,20 @@ def test_direction_mapping_is_cycles_equirectangular():
     assert np.allclose(d, (0.0, 1.0, 0.0), atol=1e-6)
 
 
+def test_mirror_ball_mapping_is_cycles():
+    """The ball's centre looks down -Y; straight up (+Z) is at radius sin 45 degrees above the
+    centre; the read is clamped at the rim."""
+    assert mirror_ball_uv((0.0, -1.0, 0.0)) == pytest.approx((0.5, 0.5))
+    assert mirror_ball_uv((0.0, 0.0, 1.0)) == pytest.approx((0.5, 0.5 + 0.5 * math.sqrt(0.5)))
+    assert mirror_ball_uv((1.0, 0.0, 0.0)) == pytest.approx((0.5 + 0.5 * math.sqrt(0.5), 0.5))
+    image = sky_map()
+    env = build_environment(Environment((1.0, 1.0, 1.0), image, projection="mirror_ball"))
+    d, _ = uv_to_direction(env, 0.75, 0.5)  # equirectangular (u, v) of -Y: the ball's centre
+    assert np.allclose(d, (0.0, -1.0, 0.0), atol=1e-9)
+    centre = 0.25 * (image[15, 31] + image[15, 32] + image[16, 31] + image[16, 32])
+    assert np.allclose(lookup(env, 0.75, 0.5), centre, rtol=1e-6)
+
+
 def test_linear_and_closest_reads_hit_pixel_values_at_centres():
     image = sky_map()
     for interpolation in ("linear", "closest"):
@@ -153,10 +173,11 @@ def _plane_scene(env: Environment, sampling: str, spp: int = 64) -> Scene:
 
 def _plane_radiance(env: Environment) -> np.ndarray:
     """albedo / pi x the irradiance on an upward plane: the integral of L cos over the upper
-    hemisphere, by the midpoint rule on a grid 16x finer than the map (L is bilinear there)."""
+    hemisphere, by the midpoint rule on a grid 32x finer than the map (L is bilinear in
+    the map's pixels, which a mirror ball shrinks toward its rim)."""
     tables = build_environment(env)
-    rad, _, sin_t, z = _radiance_grid(tables, 16 * H, 16 * W)
-    weight = np.clip(z, 0.0, None) * sin_t * (2 * math.pi / (16 * W)) * (math.pi / (16 * H))
+    rad, _, sin_t, z = _radiance_grid(tables, 32 * H, 32 * W)
+    weight = np.clip(z, 0.0, None) * sin_t * (2 * math.pi / (32 * W)) * (math.pi / (32 * H))
     return ALBEDO / math.pi * np.einsum("ijc,ij->c", rad, weight)
 
 
@@ -169,11 +190,14 @@ def _check_against(film, want) -> float:
     return float(var.sum() / k**2)
 
 
-def test_plane_under_an_hdri_matches_quadrature_for_every_sampling():
+@pytest.mark.parametrize("projection", ["equirectangular", "mirror_ball"])
+def test_plane_under_an_hdri_matches_quadrature_for_every_sampling(projection):
     """Direct light from a map with a small, very bright sun on a diffuse plane: light
     sampling, BSDF sampling and their MIS all give the quadrature's value, and MIS has far
-    less variance than BSDF sampling alone (the sun found by importance, not by chance)."""
-    env = Environment((1.0, 0.8, 1.2), sky_map(), to_world=rotation_z(40.0))
+    less variance than BSDF sampling alone (the sun found by importance, not by chance).
+    The same image read as a mirror ball puts the sun elsewhere, and its distribution comes
+    from the grid evaluated from the ball."""
+    env = Environment((1.0, 0.8, 1.2), sky_map(), projection=projection, to_world=rotation_z(40.0))
     want = _plane_radiance(env)
     variance = {s: _check_against(render_film(_plane_scene(env, s)), want) for s in ("mis", "nee", "bsdf")}
     assert variance["mis"] < 0.05 * variance["bsdf"], variance
@@ -195,6 +219,7 @@ def test_constant_world_compiles_no_map_and_scene_files_keep_the_map(tmp_path):
     (dict(radiance_map=-sky_map()), "must not be negative"),
     (dict(radiance_map=np.zeros((4, 4), np.float32)), "(height, width, 3)"),
     (dict(radiance_map=sky_map(), interpolation="cubic"), "unknown interpolation"),
+    (dict(radiance_map=sky_map(), projection="cube"), "unknown projection"),
     (dict(radiance_map=sky_map(), to_world=np.diag([2.0, 1.0, 1.0, 1.0])), "not orthogonal"),
     (dict(radiance_map=sky_map(1e30)), "at most"),
 ])

@@ -1,11 +1,11 @@
 """A world lit by an image: Background <- Environment Texture [<- Mapping] [<- Texture Coordinate].
 
 The pattern artists use for an HDRI. What it exports is an Environment with a radiance
-map (renderer.lights.environment): the image's pixels in linear Rec.709, the Background's
-Strength as the map's tint, and the Mapping node's rotation (or its inverse for the Texture
-type) as the map's frame. Anything else in that chain (a texture feeding Strength, a
-translation or an unequal scale on the direction, a mirror-ball projection, cubic
-interpolation) is warned about once, naming the world and node, with what is rendered
+map (renderer.lights.environment): the image's pixels in linear Rec.709 with its projection
+(equirectangular or mirror ball), the Background's Strength as the map's tint, and the
+Mapping node's rotation (or its inverse for the Texture type) as the map's frame. Anything
+else in that chain (a texture feeding Strength, a translation or an unequal scale on the
+direction, cubic interpolation) is warned about once, naming the world and node, with what is rendered
 instead. A tree that is not this pattern is folded to a constant as before (world.py).
 
 The pixels are read with `image.pixels.foreach_get` into a new array: the user's image,
@@ -47,9 +47,6 @@ def environment_map(graph: ShaderGraph, surface_socket) -> Environment | None:
     if texture[1].name != "Color":
         return None  # the Alpha output: left to the constant folding (which warns)
     strength = float(graph.input_value(background.inputs["Strength"])[0, 0])
-    if node.projection != "EQUIRECTANGULAR":
-        graph.warn_node(node, "mirror ball projection is not supported; the background is its Color input")
-        return None
     pixels = image_pixels(graph, node)
     if pixels is None:
         return Environment(radiance=tuple(strength * c for c in MISSING_IMAGE))
@@ -58,8 +55,9 @@ def environment_map(graph: ShaderGraph, surface_socket) -> Environment | None:
         graph.warn_node(node, f"{node.interpolation} interpolation is rendered as Linear")
     to_world = np.eye(4)
     to_world[:3, :3] = direction_transform(graph, node.inputs["Vector"]).T  # world -> map, inverted
+    projection = "mirror_ball" if node.projection == "MIRROR_BALL" else "equirectangular"
     return Environment(radiance=(strength, strength, strength), radiance_map=pixels,
-                       interpolation=interpolation, to_world=to_world)
+                       interpolation=interpolation, projection=projection, to_world=to_world)
 
 
 def image_pixels(graph: ShaderGraph, node) -> np.ndarray | None:
