@@ -34,6 +34,7 @@ from .camera import (
     PROJ_SENSOR_W,
     PROJ_SIZE,
 )
+from .lights.environment_map import build_environment
 from .lights.table import LightTable, build_light_table
 from .media.compile import build_media_data
 from .media.layout import MediaData
@@ -101,6 +102,9 @@ class CompiledScene:
     aovs: bool = False  # the surface stage writes the passes' columns (renderer.passes)
     mist: tuple[float, float, float] = (5.0, 1.0 / 25.0, 2.0)  # start, 1 / depth, falloff exponent
     shading: ShadingTables | None = None  # shader programs (renderer.shading.table); None = none
+    # The environment map's tables (renderer.lights.environment_map); None for a constant
+    # world, which then compiles and runs no map code.
+    environment: tuple | None = None
 
 
 def _merge_meshes(scene: Scene, material_index: dict[str, int], medium_index: dict[str, int]):
@@ -200,7 +204,8 @@ def compile_scene(scene: Scene) -> CompiledScene:
     return CompiledScene(vertices, indices, geometry, materials, lights, media, _camera(scene),
                          width, height, world_medium, has_media, needs_walk, radius,
                          bool(scene.film.transparent), bool(scene.film.aovs), _mist(scene.film),
-                         build_shading_tables(scene.materials, scene.meshes, scene.images, indices.shape[0]))
+                         build_shading_tables(scene.materials, scene.meshes, scene.images, indices.shape[0]),
+                         build_environment(scene.environment))
 
 
 def _mist(film) -> tuple[float, float, float]:

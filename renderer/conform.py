@@ -39,6 +39,7 @@ ARRAY_DTYPES: dict[str, np.dtype] = {
     "data": np.dtype(np.float32),
     "values": np.dtype(np.float32),
     "pixels": np.dtype(np.float32),
+    "radiance_map": np.dtype(np.float32),
 }
 # Transforms are 16 numbers: written inline in the JSON, where a person can read them.
 MATRIX_FIELDS = frozenset({"to_world"})

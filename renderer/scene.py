@@ -55,6 +55,10 @@ PROJECTIONS: dict[str, int] = {
     "fisheye_equisolid": 4,
     "mirrorball": 5,
 }
+# How an environment map is read between pixel centres (Cycles' image interpolations).
+ENV_INTERPOLATIONS: dict[str, int] = {"linear": 0, "closest": 1}
+# How an environment map's image covers the sphere (Cycles' Environment Texture projections).
+ENV_PROJECTIONS: dict[str, int] = {"equirectangular": 0, "mirror_ball": 1}
 SAMPLING_MODES = ("mis", "nee", "bsdf")
 TRANSMITTANCE_MODES = ("ratio", "delta")
 DISTANCE_SAMPLING_MODES = ("spectral_mis", "uniform")
@@ -151,8 +155,10 @@ class Lobe:
                         roughness 0).
       "rough_conductor" GGX microfacet reflection, alpha = roughness^2, reflectance per
                         `fresnel`, visible-normal sampling.
-      "plastic"        Cycles' Principled dielectric: a GGX specular layer (ior, roughness)
-                        over a diffuse base of albedo `color` weighted by 1 - E(wo).
+      "plastic"        Cycles' Principled dielectric: a GGX specular layer (ior, roughness,
+                        specular tint `tint`) over a diffuse base of albedo `color` weighted
+                        by 1 - E(wo).
+      "dielectric" reflection is tinted by `tint`, refraction by `color`.
 
     fresnel (conductors only):
       "constant"       reflectance = `color` at every angle (Cycles' Glossy BSDF).
@@ -168,7 +174,10 @@ class Lobe:
     ior: float = 1.5  # > 0; the medium behind the front face over the one in front
     sides: str = "both"  # "front", "back" or "both": faces on which the lobe exists
     fresnel: str = "constant"  # conductors: "constant" or "f82"
-    tint: RGB = (1.0, 1.0, 1.0)  # conductors with fresnel "f82": edge tint in [0, 1]
+    # conductors with fresnel "f82": edge tint; plastic: specular tint (F0 x tint); dielectric:
+    # reflection tint (`color` tints the refraction). In [0, 1].
+    tint: RGB = (1.0, 1.0, 1.0)
+    multiscatter: bool = False  # rough_conductor, plastic: Cycles' Multiscatter GGX compensation
 
 
 @dataclass
@@ -247,7 +256,21 @@ LIGHT_TYPES: dict[str, type] = {"point": PointLight, "spot": SpotLight, "sun": S
 
 @dataclass
 class Environment:
-    radiance: RGB = (0.0, 0.0, 0.0)  # constant radiance from every direction at infinity
+    """Radiance arriving from infinity: `radiance` from every direction, or, with a
+    `radiance_map`, the map's radiance times `radiance` (Background strength x colour).
+
+    radiance_map (H, W, 3) float32 >= 0: an image in `projection`: equirectangular with
+    Cycles' mapping (u = 1/2 looks down the map's +X, row 0 is the bottom, the top row the
+    zenith) or Cycles' mirror ball (the ball seen from -Y), read with `interpolation`;
+    `to_world` (4, 4) turns the map's frame into the world (a rotation or reflection only;
+    the last column is ignored). See renderer.lights.environment.
+    """
+
+    radiance: RGB = (0.0, 0.0, 0.0)  # W/(m^2 sr); with a map, its tint
+    radiance_map: np.ndarray | None = None  # (H, W, 3) float32 radiance, W/(m^2 sr)
+    interpolation: str = "linear"  # an ENV_INTERPOLATIONS word
+    projection: str = "equirectangular"  # an ENV_PROJECTIONS word
+    to_world: np.ndarray = field(default_factory=lambda: np.eye(4))  # (4, 4) float64, map -> world
 
 
 @dataclass

@@ -20,6 +20,8 @@ from renderer.errors import SceneError
 from renderer.scene import (
     CONDUCTOR_KINDS,
     DISTANCE_SAMPLING_MODES,
+    ENV_INTERPOLATIONS,
+    ENV_PROJECTIONS,
     FOV_AXES,
     FRESNEL_MODES,
     LIGHT_TYPES,
@@ -30,6 +32,7 @@ from renderer.scene import (
     SIDES,
     TRANSMITTANCE_MODES,
     Camera,
+    Environment,
     Film,
     IntegratorSettings,
     Lobe,
@@ -86,7 +89,7 @@ def validate_scene(scene: Scene) -> None:
         _check_light(light, f"lights[{i}]")
     for i, medium in enumerate(scene.media):
         _check_medium(medium, f"media[{i}]")
-    _check_nonnegative_rgb(scene.environment.radiance, "environment.radiance")
+    _check_environment(scene.environment, "environment")
     _check_reference(scene.medium, medium_names, "medium", "medium")
     _check_path_growth(scene)
 
@@ -379,6 +382,26 @@ def _check_light(light: Any, path: str) -> None:
         require(
             0.0 <= light.angle < 180.0, f"{path}.angle", f"must be in [0, 180) degrees, got {light.angle}"
         )
+
+
+def _check_environment(env: Environment, path: str) -> None:
+    _check_nonnegative_rgb(env.radiance, f"{path}.radiance")
+    check_choice(env.interpolation, ENV_INTERPOLATIONS, f"{path}.interpolation", "interpolation")
+    check_choice(env.projection, ENV_PROJECTIONS, f"{path}.projection", "projection")
+    rotation = env.to_world[:3, :3]
+    # An orthogonal matrix has no entry beyond +-1 (checked first, so the product cannot overflow).
+    bounded = bool(np.abs(rotation).max() <= 1.0 + 1e-5)
+    orthogonal = bounded and np.allclose(rotation @ rotation.T, np.eye(3), rtol=0.0, atol=1e-5)
+    require(orthogonal, f"{path}.to_world", "must rotate (or reflect) only: its 3x3 part is not orthogonal")
+    image = env.radiance_map
+    if image is None:
+        return
+    where = f"{path}.radiance_map"
+    ok = image.ndim == 3 and image.shape[2] == 3 and image.shape[0] >= 1 and image.shape[1] >= 1
+    require(ok, where, f"must have shape (height, width, 3), got {image.shape}")
+    require(float(image.min()) >= 0.0, where, "must not be negative")
+    peak = float(image.max()) * max(env.radiance)
+    _check_magnitude(peak, where, "largest radiance x tint")
 
 
 def _check_medium(medium: Medium, path: str) -> None:

@@ -501,13 +501,17 @@ def test_principled_bsdf_follows_cycles_layering(exported):
     assert metal.weight == pytest.approx((alpha * metallic,) * 3)
     assert metal.color == pytest.approx((0.8, 0.2, 0.1)) and metal.roughness == pytest.approx(0.4)
     assert metal.fresnel == "f82" and metal.tint == pytest.approx((1.0, 1.0, 1.0))  # F0 = base, F82 tint
+    assert metal.multiscatter  # the node's default distribution, Multiscatter GGX
     glass = lobes["dielectric"]
     assert glass.weight == pytest.approx((alpha * (1 - metallic) * transmission,) * 3)
+    # Cycles tints the refraction by sqrt(base) and leaves the reflection white.
     assert glass.color == pytest.approx(tuple(np.sqrt([0.8, 0.2, 0.1])), rel=1e-6)
+    assert glass.tint == pytest.approx((1.0, 1.0, 1.0))
     assert glass.ior == pytest.approx(1.45)
     base = lobes["plastic"]
     assert base.weight == pytest.approx((alpha * (1 - metallic) * (1 - transmission),) * 3)
     assert base.ior == pytest.approx(1.45) and base.color == pytest.approx((0.8, 0.2, 0.1))
+    assert base.multiscatter and base.tint == pytest.approx((1.0, 1.0, 1.0))  # Specular Tint's default
     assert mat.emission == pytest.approx((alpha * 2.0, alpha * 1.0, alpha * 0.5))
     assert mat.emission_sides == "both"
     # Specular IOR Level 0.25 halves F0 = ((n-1)/(n+1))^2 of IOR 1.5.

@@ -89,6 +89,32 @@ def cornell(samples, seed=0):
     return scene
 
 
+def hdri_stage():
+    """A ball on a floor under an in-memory float HDRI (a sky and a small bright sun),
+    through a rotating Mapping node."""
+    import numpy as np
+
+    scene = C.clear_scene()
+    C.add_camera(scene, (0.0, -3.0, 1.0), (80.0, 0.0, 0.0))
+    H.floor_plane("Floor", 2.0, C.diffuse_material("Floor", (0.6, 0.6, 0.6)))
+    H.uv_sphere("Ball", (0.0, 0.0, 0.5), 0.5, C.diffuse_material("Ball", (0.7, 0.4, 0.3)))
+    image = bpy.data.images.new("Sky", 64, 32, alpha=False, float_buffer=True)
+    rgba = np.ones((32, 64, 4), np.float32)
+    rgba[..., :3] = np.linspace(0.05, 1.0, 32)[:, None, None]
+    rgba[24, 10, :3] = 500.0
+    image.pixels.foreach_set(rgba.ravel())
+    world = bpy.data.worlds.new("HDRI"); H.ensure_nodes(world)
+    nodes, links = world.node_tree.nodes, world.node_tree.links
+    texture = nodes.new("ShaderNodeTexEnvironment"); texture.image = image
+    mapping = nodes.new("ShaderNodeMapping"); mapping.inputs["Rotation"].default_value = (0.0, 0.0, 0.7)
+    links.new(mapping.outputs["Vector"], texture.inputs["Vector"])
+    links.new(texture.outputs["Color"], nodes["Background"].inputs["Color"])
+    scene.world = world
+    scene.render.resolution_x, scene.render.resolution_y = 24, 16
+    H.configure_haze(scene, 4, 3, seed=5, workers=1)
+    return scene
+
+
 def main():
     H.enable_dev_addon()
     instrument()
@@ -125,6 +151,12 @@ def main():
     bmesh.ops.delete(bm, geom=[bm.faces[0]], context="FACES_ONLY"); bm.to_mesh(fog.data); bm.free()
     H.add_light("AREA", "Flat Light", (0, 0, 1), size=0.0, energy=10.0)
     results["warned"] = render(scene, "warned")
+
+    scene = hdri_stage()
+    results["hdri"] = render(scene, "hdri")
+    folder = os.path.join(OUT, "exported_hdri")
+    results["hdri_export"] = sorted(bpy.ops.export_scene.haze(filepath=folder))
+    results["hdri_folder"] = folder
 
     scene = C.clear_scene()
     C.add_camera(scene, (0, -3, 1), (90, 0, 0))
@@ -224,3 +256,18 @@ def test_exported_scene_rendered_by_the_cli_equals_the_blender_render(renders, t
     cli = read_exr(output)
     assert blender.mean() > 0.01
     np.testing.assert_array_equal(cli, blender)
+
+
+def test_hdri_world_renders_the_same_through_the_cli(renders, tmp_path, numba_cache_dir):
+    """An HDRI world (an in-memory float image) exported and rendered by the command line
+    gives F12's image, same seed, bit for bit."""
+    assert renders["hdri_export"] == ["FINISHED"] and not errors(renders["hdri"])
+    output = tmp_path / "hdri.exr"
+    command = [sys.executable, "-m", "renderer", "render", renders["hdri_folder"], "-o", str(output),
+               "--workers", "1", "--no-png"]
+    env = {"NUMBA_CACHE_DIR": str(numba_cache_dir), "PATH": "/usr/bin:/bin", "HOME": str(tmp_path)}
+    process = subprocess.run(command, cwd=REPO, env=env, capture_output=True, text=True, timeout=600)
+    assert process.returncode == 0, process.stderr
+    blender = read_exr(renders["hdri"]["exr"])
+    assert blender.mean() > 0.05 and blender.std() > 0.01  # lit, and not a constant sky
+    np.testing.assert_array_equal(read_exr(output), blender)

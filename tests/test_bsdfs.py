@@ -45,6 +45,7 @@ from renderer.bsdfs.material import (
     L_FRESNEL,
     L_IOR,
     L_KIND,
+    L_MS,
     L_ROUGH,
     L_SIDES,
     L_TINT,
@@ -72,7 +73,8 @@ SUB = 24  # narrow lobe near the pole still spans many quadrature points (SUB^2 
 P_MIN = 1e-3
 Z_MAX = 5.0
 WHITE = (1.0, 1.0, 1.0)
-PLAIN = (FRESNEL_CONSTANT, WHITE)  # the Fresnel arguments of lobes that have none
+# The Fresnel, tint and multiscatter arguments of lobes that have none.
+PLAIN = (FRESNEL_CONSTANT, WHITE, False)
 
 
 def direction(theta_deg: float, phi_deg: float = 0.0) -> tuple[float, float, float]:
@@ -85,14 +87,14 @@ def direction(theta_deg: float, phi_deg: float = 0.0) -> tuple[float, float, flo
 
 
 @njit(cache=True)
-def _sample_lobe(kind, color, rough, ior, fresnel, tint, wo, n, seed):
+def _sample_lobe(kind, color, rough, ior, fresnel, tint, ms, wo, n, seed):
     np.random.seed(seed)
     wi = np.zeros((n, 3))
     weight = np.zeros((n, 3))
     pdf = np.zeros(n)
     delta = np.zeros(n, np.bool_)
     for k in range(n):
-        d, w, p, dl = lobe_sample(kind, color, rough, ior, fresnel, tint, wo, np.random.random(),
+        d, w, p, dl = lobe_sample(kind, color, rough, ior, fresnel, tint, ms, wo, np.random.random(),
                                   np.random.random(), np.random.random())
         wi[k, 0], wi[k, 1], wi[k, 2] = d
         weight[k, 0], weight[k, 1], weight[k, 2] = w
@@ -102,12 +104,12 @@ def _sample_lobe(kind, color, rough, ior, fresnel, tint, wo, n, seed):
 
 
 @njit(cache=True)
-def _eval_lobe_at(kind, color, rough, ior, fresnel, tint, wo, wi):
+def _eval_lobe_at(kind, color, rough, ior, fresnel, tint, ms, wo, wi):
     n = wi.shape[0]
     f = np.zeros((n, 3))
     pdf = np.zeros(n)
     for k in range(n):
-        fk, pk = lobe_eval(kind, color, rough, ior, fresnel, tint, wo, (wi[k, 0], wi[k, 1], wi[k, 2]))
+        fk, pk = lobe_eval(kind, color, rough, ior, fresnel, tint, ms, wo, (wi[k, 0], wi[k, 1], wi[k, 2]))
         f[k, 0], f[k, 1], f[k, 2] = fk
         pdf[k] = pk
     return f, pdf
@@ -172,8 +174,8 @@ def _sphere_quadrature(eval_fn, args, wo, n_theta, n_phi, sub):
 
 @njit(cache=True)
 def _lobe_eval_fn(args, wo, wi):
-    kind, color, rough, ior, fresnel, tint = args
-    return lobe_eval(kind, color, rough, ior, fresnel, tint, wo, wi)
+    kind, color, rough, ior, fresnel, tint, ms = args
+    return lobe_eval(kind, color, rough, ior, fresnel, tint, ms, wo, wi)
 
 
 @njit(cache=True)
@@ -270,17 +272,17 @@ def assert_mean(samples: np.ndarray, expected, extra_err=0.0, what: str = "") ->
     assert np.all(np.abs(mean - expected) <= bound), f"{what}: mean {mean} expected {expected} +- {bound}"
 
 
-def lobe_quadrature(kind, color, rough, ior, fresnel, tint, wo):
+def lobe_quadrature(kind, color, rough, ior, fresnel, tint, ms, wo):
     """Per-bin pdf integrals and albedo, with the change from halving the step as error bound."""
-    args = (kind, color, rough, ior, fresnel, tint)
+    args = (kind, color, rough, ior, fresnel, tint, ms)
     bins, albedo = _sphere_quadrature(_lobe_eval_fn, args, wo, N_THETA, N_PHI, SUB)
     bins2, albedo2 = _sphere_quadrature(_lobe_eval_fn, args, wo, N_THETA, N_PHI, 2 * SUB)
     return bins2, albedo2, np.abs(bins2 - bins).sum(), np.abs(albedo2 - albedo)
 
 
 # ---------------------------------------------------------------------------------------------
-# Lobe configurations: (kind, color, roughness, ior, wo), or with the conductors' Fresnel
-# mode and tint appended: (kind, color, roughness, ior, wo, fresnel, tint).
+# Lobe configurations: (kind, color, roughness, ior, wo), or with the Fresnel mode, tint and
+# multiscatter flag appended: (kind, color, roughness, ior, wo, fresnel, tint[, ms]).
 
 BACK = -1.0  # marks a wo seen from the back face
 
@@ -305,20 +307,27 @@ NON_DELTA_CASES = [
     (PLASTIC, WHITE, 0.0, 1.5, direction(30)),  # smooth coat: delta + diffuse
     (PLASTIC, (0.2, 0.4, 0.6), 0.0, 3.0, direction(80)),
     (PLASTIC, WHITE, 0.4, 1.5, direction(150, 45)),  # back face
+    # Multiscatter GGX and the plastic's specular tint.
+    (ROUGH_CONDUCTOR, (0.8, 0.8, 0.7), 0.7, 1.5, direction(60), FRESNEL_CONSTANT, WHITE, True),
+    (ROUGH_CONDUCTOR, (0.9, 0.6, 0.3), 0.5, 1.5, direction(30), FRESNEL_F82, (0.5, 0.8, 1.0), True),
+    (PLASTIC, (0.7, 0.2, 0.1), 0.5, 1.5, direction(50), FRESNEL_CONSTANT, (1.0, 0.5, 0.2), True),
+    (PLASTIC, WHITE, 0.9, 1.5, direction(75, 20), FRESNEL_CONSTANT, WHITE, True),
+    (PLASTIC, (0.3, 0.5, 0.7), 0.3, 1.45, direction(40), FRESNEL_CONSTANT, (0.2, 0.9, 0.6), False),
 ]
 
 
 def unpack(case):
-    """(kind, color, roughness, ior, fresnel, tint, wo) of a case."""
+    """(kind, color, roughness, ior, fresnel, tint, ms, wo) of a case."""
     kind, color, rough, ior, wo = case[:5]
-    fresnel, tint = case[5:] if len(case) > 5 else (FRESNEL_CONSTANT, WHITE)
-    return kind, color, rough, ior, fresnel, tint, wo
+    fresnel, tint, ms = (tuple(case[5:]) + (False,))[:3] if len(case) > 5 else PLAIN
+    return kind, color, rough, ior, fresnel, tint, ms, wo
 
 
 def case_id(case) -> str:
-    kind, color, rough, ior, fresnel, tint, wo = unpack(case)
+    kind, color, rough, ior, fresnel, tint, ms, wo = unpack(case)
     name = {v: k for k, v in LOBE_KINDS.items()}[kind]
     suffix = "-f82" if fresnel == FRESNEL_F82 else ""
+    suffix += ("-ms" if ms else "") + ("-tint" if tint != WHITE else "")
     return f"{name}{suffix}-r{rough}-ior{ior}-woz{wo[2]:.2f}"
 
 
@@ -327,8 +336,8 @@ def test_lobe_sampling_matches_pdf(case):
     """(a) chi-square of sampled wi against the binned pdf; (b) the pdf integrates to the
     probability of a non-delta, non-failed sample; (d) E[weight] = integral of f |cos|, <= 1;
     (e) every sample's weight and pdf equal eval's f |cos| / pdf."""
-    kind, color, rough, ior, fresnel, tint, wo = unpack(case)
-    wi, weight, pdf, delta = _sample_lobe(kind, color, rough, ior, fresnel, tint, wo, N_SAMPLES, 7)
+    kind, color, rough, ior, fresnel, tint, ms, wo = unpack(case)
+    wi, weight, pdf, delta = _sample_lobe(kind, color, rough, ior, fresnel, tint, ms, wo, N_SAMPLES, 7)
     failed = np.all(weight == 0.0, axis=1)
     scatter = ~failed & ~delta
     # Non-delta samples stay on wo's side: these lobes only reflect.
@@ -336,12 +345,12 @@ def test_lobe_sampling_matches_pdf(case):
     assert np.all(pdf[failed] == 0.0)
 
     # (e) sample and eval agree sample by sample (float64 round-off only).
-    f, pdf_eval = _eval_lobe_at(kind, color, rough, ior, fresnel, tint, wo, wi[scatter])
+    f, pdf_eval = _eval_lobe_at(kind, color, rough, ior, fresnel, tint, ms, wo, wi[scatter])
     np.testing.assert_allclose(pdf[scatter], pdf_eval, rtol=1e-7)
     np.testing.assert_allclose(weight[scatter], f * np.abs(wi[scatter, 2:3]) / pdf_eval[:, None], rtol=1e-7)
 
     # (a) + (b): bins of the sphere plus one cell for "delta or failed".
-    bins, albedo, bins_err, albedo_err = lobe_quadrature(kind, color, rough, ior, fresnel, tint, wo)
+    bins, albedo, bins_err, albedo_err = lobe_quadrature(kind, color, rough, ior, fresnel, tint, ms, wo)
     mass = bins.sum()
     counts = histogram(wi[scatter])
     observed = np.append(counts.ravel(), np.count_nonzero(~scatter))
@@ -358,7 +367,7 @@ def test_lobe_sampling_matches_pdf(case):
         delta_albedo = fresnel_dielectric(abs(wo[2]), coat_eta(ior))[0]
     assert_mean(weight, albedo + delta_albedo, albedo_err, "albedo")
 
-    if color == WHITE:
+    if color == WHITE and not ms:  # (multiscatter: its table's accuracy, test_multiscatter_*)
         se = weight.std(axis=0) / math.sqrt(N_SAMPLES)
         assert np.all(weight.mean(axis=0) <= 1.0 + Z_MAX * se), weight.mean(axis=0)
 
@@ -378,9 +387,9 @@ def test_diffuse_is_exact():
     assert lobe_eval(DIFFUSE, color, 0.0, 1.5, *PLAIN, wo, direction(100))[0] == (0.0, 0.0, 0.0)
 
 
-@pytest.mark.parametrize("kind, rough, fresnel", [(DIFFUSE, 0.0, PLAIN), (ROUGH_CONDUCTOR, 0.3, PLAIN),
-                                                  (ROUGH_CONDUCTOR, 0.9, PLAIN),
-                                                  (ROUGH_CONDUCTOR, 0.4, (FRESNEL_F82, (0.2, 0.7, 1.0)))])
+@pytest.mark.parametrize("kind, rough, fresnel", [
+    (DIFFUSE, 0.0, PLAIN), (ROUGH_CONDUCTOR, 0.3, PLAIN), (ROUGH_CONDUCTOR, 0.9, PLAIN),
+    (ROUGH_CONDUCTOR, 0.4, (FRESNEL_F82, (0.2, 0.7, 1.0), False))])
 def test_reciprocity(kind, rough, fresnel, rng):
     """(c) f(wo, wi) = f(wi, wo) for reflection lobes, on both faces. (Not plastic: Cycles'
     Principled base is weighted by 1 - E(wo) alone, see test_plastic_base_weight.)"""
@@ -397,7 +406,8 @@ def test_reciprocity(kind, rough, fresnel, rng):
 
 
 @pytest.mark.parametrize("kind, fresnel", [(DIFFUSE, PLAIN), (ROUGH_CONDUCTOR, PLAIN), (PLASTIC, PLAIN),
-                                           (ROUGH_CONDUCTOR, (FRESNEL_F82, WHITE))])
+                                           (ROUGH_CONDUCTOR, (FRESNEL_F82, WHITE, False)),
+                                           (PLASTIC, (FRESNEL_CONSTANT, (0.5, 0.5, 1.0), True))])
 def test_opposite_sides_do_not_reflect(kind, fresnel):
     wo = direction(30)
     for wi in (direction(120), direction(95, 70)):
@@ -417,7 +427,7 @@ def test_smooth_lobes_and_transparent():
             assert lobe_eval(kind, color, rough, 1.5, *PLAIN, wo, wi) == ((0.0, 0.0, 0.0), 0.0)
             # F82 mode: the weight is the Fresnel curve at the mirror angle.
             tint = (0.4, 0.7, 1.0)
-            wi, w, pdf, dl = lobe_sample(kind, color, rough, 1.5, FRESNEL_F82, tint, wo, 0.3, 0.6, 0.9)
+            wi, w, pdf, dl = lobe_sample(kind, color, rough, 1.5, FRESNEL_F82, tint, False, wo, 0.3, 0.6, 0.9)
             assert dl and pdf == 1.0
             assert w == conductor_fresnel(FRESNEL_F82, color, tint, abs(wo[2]))
         wi, w, pdf, dl = lobe_sample(TRANSPARENT, color, 0.0, 1.5, *PLAIN, wo, 0.3, 0.6, 0.9)
@@ -455,12 +465,15 @@ def test_fresnel_dielectric():
                                         (1.5, 160.0), (2.4, 170.0), (0.8, 50.0)])
 def test_dielectric_reflect_fraction_and_snell(ior, theta):
     """(g) reflection happens with probability F; refraction obeys Snell's law; (d) the white
-    furnace: every sample's weight is the colour, so R + T averages exactly 1."""
+    furnace: every sample's weight is its branch's tint (reflection `tint`, refraction `color`),
+    so R + T averages exactly 1 for white ones."""
     wo = direction(theta, 25.0)
-    color = (0.9, 0.7, 0.5)
-    wi, weight, pdf, delta = _sample_lobe(DIELECTRIC, color, 0.0, ior, *PLAIN, wo, N_SAMPLES, 11)
+    color, tint = (0.9, 0.7, 0.5), (0.3, 0.6, 1.0)
+    wi, weight, pdf, delta = _sample_lobe(DIELECTRIC, color, 0.0, ior, FRESNEL_CONSTANT, tint, False, wo,
+                                          N_SAMPLES, 11)
     assert delta.all()
-    np.testing.assert_allclose(weight, np.tile(color, (N_SAMPLES, 1)), rtol=0, atol=0)
+    same_side = (np.sign(wi[:, 2]) == np.sign(wo[2]))[:, None]
+    np.testing.assert_allclose(weight, np.where(same_side, tint, color), rtol=0, atol=0)
     _, white, _, _ = _sample_lobe(DIELECTRIC, WHITE, 0.0, ior, *PLAIN, wo, 1000, 12)
     assert np.all(white == 1.0)
     outside = wo[2] >= 0
@@ -618,7 +631,8 @@ def test_material_table_layout():
     assert mats.dtype == np.int32 and lobes.dtype == np.float32
     assert mats.flags.c_contiguous and lobes.flags.c_contiguous
     assert mats.tolist() == [[0, 3], [3, 4], [7, 1], [8, 0]]
-    assert lobes.shape[1] == 14
+    assert lobes.shape[1] == 15
+    assert lobes[:, L_MS].tolist() == [0.0] * 8
     assert lobes[:, L_KIND].tolist() == [DIFFUSE, ROUGH_CONDUCTOR, ROUGH_CONDUCTOR, PLASTIC, ROUGH_CONDUCTOR,
                                          TRANSPARENT, DIELECTRIC, DIFFUSE]
     assert lobes[:, L_SIDES].tolist() == [3, 3, 3, 3, 3, 1, 2, 1]

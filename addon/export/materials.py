@@ -53,7 +53,7 @@ def close_open_sides(lobes: list[Lobe]) -> list[Lobe]:
 def lobe_from_term(term: Term) -> Lobe:
     return Lobe(kind=term.kind, weight=rgb(term.weight), color=rgb(term.color),
                 roughness=float(term.roughness), ior=float(term.ior), sides=term.sides,
-                fresnel=term.fresnel, tint=rgb(term.tint))
+                fresnel=term.fresnel, tint=rgb(term.tint), multiscatter=bool(term.multiscatter))
 
 
 def emission_per_side(terms: list[Term]) -> tuple[np.ndarray, np.ndarray]:

@@ -41,11 +41,13 @@ class Term:
     # (field, register) pairs that set a field, and scalar registers scaling the weight.
     binds: tuple = ()
     scales: tuple = ()
+    multiscatter: bool = False  # GGX lobes: Cycles' Multiscatter GGX energy compensation
 
     def same_closure(self, other: Term) -> bool:
         return (
             self.kind == other.kind
             and self.fresnel == other.fresnel
+            and self.multiscatter == other.multiscatter
             and np.allclose(self.weight, other.weight, rtol=1e-6, atol=1e-9)
             and np.allclose(self.color, other.color, rtol=1e-6, atol=1e-9)
             and np.allclose(self.tint, other.tint, rtol=1e-6, atol=1e-9)
@@ -176,10 +178,12 @@ def reflection_kind(roughness: float) -> str:
     return "conductor" if roughness <= 0.0 else "rough_conductor"
 
 
-def warn_ignored_distribution(read: Inputs, node) -> None:
+def warn_ignored_distribution(read: Inputs, node) -> bool:
+    """Whether the node's microfacets are Multiscatter GGX (others are rendered as GGX)."""
     distribution = getattr(node, "distribution", "GGX")
     if distribution not in {"GGX", "MULTI_GGX"}:
         read.warn(f"{distribution} microfacets are rendered as GGX")
+    return distribution == "MULTI_GGX"
 
 
 def shader_diffuse(read: Inputs) -> list[Term]:
@@ -191,14 +195,14 @@ def shader_diffuse(read: Inputs) -> list[Term]:
 
 def shader_glossy(read: Inputs) -> list[Term]:
     node = read.node
-    warn_ignored_distribution(read, node)
+    multiscatter = warn_ignored_distribution(read, node)
     if read("Anisotropy") != 0.0:
         read.warn("Anisotropy is ignored")
     binds = color_binds(read) + roughness_bind(read)
     roughness = saturate(read("Roughness"))
     kind = "rough_conductor" if any(f == "roughness" for f, _ in binds) else reflection_kind(roughness)
     return [Term(kind, np.ones(3), color=rgb(np.maximum(read("Color"), 0.0)), roughness=roughness,
-                 binds=binds)]
+                 binds=binds, multiscatter=multiscatter)]
 
 
 def conductor_reflectance(cos: float, ior: np.ndarray, extinction: np.ndarray) -> np.ndarray:
@@ -231,7 +235,7 @@ def shader_metallic(read: Inputs) -> list[Term]:
     """Cycles' Metallic BSDF: the F82-tint Fresnel of Base Color and Edge Tint, or (Physical
     Conductor) the exact Fresnel of a complex index, here fitted by an F82-tint curve."""
     node = read.node
-    warn_ignored_distribution(read, node)
+    multiscatter = warn_ignored_distribution(read, node)
     if read("Anisotropy") != 0.0:
         read.warn("Anisotropy is ignored")
     if node.fresnel_type == "PHYSICAL_CONDUCTOR":
@@ -241,7 +245,7 @@ def shader_metallic(read: Inputs) -> list[Term]:
         tint = np.clip(read("Edge Tint"), 0.0, 1.0)
     roughness = saturate(read("Roughness"))
     return [Term(reflection_kind(roughness), np.ones(3), color=rgb(f0), roughness=roughness, fresnel="f82",
-                 tint=rgb(tint))]
+                 tint=rgb(tint), multiscatter=multiscatter)]
 
 
 def shader_glass(read: Inputs) -> list[Term]:
@@ -249,8 +253,10 @@ def shader_glass(read: Inputs) -> list[Term]:
     if roughness > 0.0:
         read.warn(f"rough glass (Roughness {roughness:g}) is rendered as smooth glass")
     ior = max(read("IOR"), 1e-5)
-    return [Term("dielectric", np.ones(3), color=rgb(np.maximum(read("Color"), 0.0)), ior=ior,
-                 binds=color_binds(read))]
+    color = rgb(np.maximum(read("Color"), 0.0))
+    binds = color_binds(read)
+    binds += tuple(("tint", reg) for _, reg in binds)  # Glass BSDF tints reflection and refraction alike
+    return [Term("dielectric", np.ones(3), color=color, ior=ior, tint=color, binds=binds)]
 
 
 def shader_transparent(read: Inputs) -> list[Term]:
@@ -272,8 +278,7 @@ def principled_ignored_inputs(read: Inputs) -> list[str]:
         ("Anisotropic", read("Anisotropic") > 0.0),
         ("Thin Film Thickness", read("Thin Film Thickness") > 0.0),
         ("Diffuse Roughness", read("Diffuse Roughness") > 0.0),
-        ("Specular Tint (of the dielectric layer; metals use it)",
-         not np.allclose(read("Specular Tint"), 1.0) and read("Metallic") < 1.0),
+        ("Specular Tint above 1 (clamped to 1)", np.any(np.asarray(read("Specular Tint")) > 1.0)),
     ]
     return [name for name, ignored in checks if ignored]
 
@@ -290,14 +295,18 @@ def adjusted_specular_ior(ior: float, level: float) -> float:
 
 def shader_principled(read: Inputs) -> list[Term]:
     """Cycles' Principled BSDF (svm/closure.h) as Haze lobes: alpha, metal (F82-tint Fresnel of
-    Base Color and Specular Tint), glass, then the dielectric specular layer over diffuse
-    (Haze's "plastic")."""
+    Base Color and Specular Tint), glass (refraction tinted by sqrt(Base Color), reflection
+    untinted), then the dielectric specular layer (F0 x Specular Tint) over diffuse (Haze's
+    "plastic"). Multiscatter GGX (the node's default) compensates the metal's and the
+    layer's energy as Cycles does."""
     ignored = principled_ignored_inputs(read)
     if ignored:
         read.warn("ignored inputs: " + ", ".join(ignored))
     base_reg, rough = read.varying("Base Color"), roughness_bind(read)
     metal_reg, glass_reg = read.varying("Metallic"), read.varying("Transmission Weight")
     base = np.maximum(read("Base Color"), 0.0)
+    specular_tint = rgb(np.clip(read("Specular Tint"), 0.0, 1.0))
+    multiscatter = warn_ignored_distribution(read, read.node)
     metallic, alpha = saturate(read("Metallic")), saturate(read("Alpha"))
     roughness, transmission = saturate(read("Roughness")), saturate(read("Transmission Weight"))
     ior = max(read("IOR"), 1e-5)
@@ -319,11 +328,11 @@ def shader_principled(read: Inputs) -> list[Term]:
             over, under = (m,), (rest,)
         terms.append(Term(kind, np.full(3, metal_weight),
                           color=rgb(np.minimum(base, 1.0)), roughness=roughness, fresnel="f82",
-                          tint=rgb(np.clip(read("Specular Tint"), 0.0, 1.0)), binds=binds, scales=over))
+                          tint=specular_tint, binds=binds, scales=over, multiscatter=multiscatter))
         weight *= 1.0 if metal_reg is not None else 1.0 - metallic
     if (transmission > 0.0 or glass_reg is not None) and weight > 0.0:
         if roughness > 0.0 or rough:
-            read.warn("rough transmission is rendered as smooth glass")
+            read.warn(f"rough transmission (Roughness {roughness:g}) is rendered as smooth glass")
         binds = () if base_reg is None else (("color", capped_color(read, base_reg, 0.5)),)
         glass_weight, over = weight * transmission, under
         if glass_reg is not None:  # as the metal: glass by t, the dielectric layer by 1 - t
@@ -336,8 +345,9 @@ def shader_principled(read: Inputs) -> list[Term]:
         eta = adjusted_specular_ior(ior, max(read("Specular IOR Level"), 0.0))
         kind = "diffuse" if eta == 1.0 else "plastic"
         binds = rough + (() if base_reg is None else (("color", base_reg),))
+        layer = {} if kind == "diffuse" else {"tint": specular_tint, "multiscatter": multiscatter}
         terms.append(Term(kind, np.full(3, weight), color=rgb(base), roughness=roughness, ior=eta,
-                          binds=binds, scales=under))
+                          binds=binds, scales=under, **layer))
     return terms
 
 

@@ -1,9 +1,11 @@
 """The world: constant background radiance and the scene-wide (world) volume.
 
-Haze's environment is one constant radiance. The world's Surface is folded like a material
-(Background colour x strength, Mix/Add of Backgrounds with constant factors); anything that
-varies with direction (sky or environment textures...) is warned about once and replaced by
-the unlinked value of the input it feeds (documented fallback).
+A Background fed by an Environment Texture (an HDRI, optionally through a Mapping node)
+becomes an environment map, importance-sampled (world_map.py). Otherwise the world's
+Surface is folded like a material to one constant radiance (Background colour x strength,
+Mix/Add of Backgrounds with constant factors); anything else that varies with direction
+(sky textures, a mix of an HDRI with another background...) is warned about once and
+replaced by the unlinked value of the input it feeds (documented fallback).
 """
 
 from __future__ import annotations
@@ -16,6 +18,7 @@ from .materials import active_output, uses_nodes, volume_medium
 from .messages import Messages
 from .node_closures import as_volume_terms, rgb
 from .nodes import ShaderGraph
+from .world_map import environment_map
 
 
 def world_subject(name: str) -> str:
@@ -34,11 +37,14 @@ def world_environment(world, messages: Messages) -> tuple[Environment, Medium | 
         messages.warn(world_subject(world.name), "has no active World Output node; the background is black")
         return Environment(), None
     graph = ShaderGraph(world_subject(world.name), messages)
+    volume_terms = as_volume_terms(graph.closure(output.inputs["Volume"]))
+    medium = volume_medium(f"{world.name} (world volume)", volume_terms, messages, world_subject(world.name))
+    mapped = environment_map(graph, output.inputs["Surface"])
+    if mapped is not None:
+        return mapped, medium
     terms = graph.closure(output.inputs["Surface"])
     radiance = sum((t.weight for t in terms if t.kind == "emission" and t.sides != "back"), np.zeros(3))
     if any(t.kind != "emission" for t in terms):
         messages.warn(world_subject(world.name),
                       "only Background shaders light the world surface; others are ignored")
-    volume_terms = as_volume_terms(graph.closure(output.inputs["Volume"]))
-    medium = volume_medium(f"{world.name} (world volume)", volume_terms, messages, world_subject(world.name))
     return Environment(radiance=rgb(radiance)), medium

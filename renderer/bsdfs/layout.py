@@ -24,6 +24,7 @@ LOBE = Layout("lobe", [
     ("sides", 1),  # bitmask, renderer.scene.SIDES (1 front, 2 back)
     ("fresnel", 1),  # renderer.scene.FRESNEL_MODES code
     ("tint", 3),  # RGB
+    ("multiscatter", 1),  # 1: Cycles' Multiscatter GGX energy compensation (GGX lobes)
 ])
 L_KIND = LOBE.offset("kind")
 L_WEIGHT = LOBE.offset("weight")
@@ -33,3 +34,4 @@ L_IOR = LOBE.offset("ior")
 L_SIDES = LOBE.offset("sides")
 L_FRESNEL = LOBE.offset("fresnel")
 L_TINT = LOBE.offset("tint")
+L_MS = LOBE.offset("multiscatter")

@@ -40,9 +40,10 @@ def lobe_is_delta(kind, roughness):
 
 
 @inline_kernel
-def lobe_eval(kind, color, roughness, ior, fresnel, tint, wo, wi):
-    """(f, pdf) of one lobe; zero for delta lobes. `fresnel` and `tint` are the conductor
-    lobes' Fresnel mode and edge tint (renderer.bsdfs FRESNEL_*); other lobes ignore them."""
+def lobe_eval(kind, color, roughness, ior, fresnel, tint, ms, wo, wi):
+    """(f, pdf) of one lobe; zero for delta lobes. `fresnel` is the conductor lobes' Fresnel
+    mode (renderer.bsdfs FRESNEL_*); `tint` their edge tint, plastic's specular tint and the
+    dielectric's reflection tint; `ms` (bool) Multiscatter GGX for the GGX lobes."""
     if kind == DIELECTRIC or kind == TRANSPARENT or kind == CONDUCTOR:
         return _ZERO3, 0.0
     if wo[2] < 0.0:  # back face of an opaque lobe: mirror the frame
@@ -53,14 +54,14 @@ def lobe_eval(kind, color, roughness, ior, fresnel, tint, wo, wi):
     if kind == ROUGH_CONDUCTOR:
         if roughness < SMOOTH_ROUGHNESS:
             return _ZERO3, 0.0
-        return rough_conductor_eval(color, roughness, ior, fresnel, tint, wo, wi)
+        return rough_conductor_eval(color, roughness, ior, fresnel, tint, ms, wo, wi)
     if kind == PLASTIC:
-        return plastic_eval(color, roughness, ior, wo, wi)
+        return plastic_eval(color, roughness, ior, tint, ms, wo, wi)
     return _ZERO3, 0.0
 
 
 @inline_kernel
-def lobe_sample(kind, color, roughness, ior, fresnel, tint, wo, u1, u2, u3):
+def lobe_sample(kind, color, roughness, ior, fresnel, tint, ms, wo, u1, u2, u3):
     """(wi, weight = f |cos| / pdf, pdf, is_delta) of one lobe.
 
     For a delta sample `pdf` is the discrete probability of the chosen branch (1 for a
@@ -68,7 +69,7 @@ def lobe_sample(kind, color, roughness, ior, fresnel, tint, wo, u1, u2, u3):
     weight (0, 0, 0) and pdf 0.
     """
     if kind == DIELECTRIC:
-        return dielectric_sample(color, roughness, ior, wo, u1, u2, u3)
+        return dielectric_sample(color, roughness, ior, tint, wo, u1, u2, u3)
     if kind == TRANSPARENT:
         return transparent_sample(color, roughness, ior, wo, u1, u2, u3)
     flip = wo[2] < 0.0
@@ -79,10 +80,10 @@ def lobe_sample(kind, color, roughness, ior, fresnel, tint, wo, u1, u2, u3):
     elif kind == CONDUCTOR or (kind == ROUGH_CONDUCTOR and roughness < SMOOTH_ROUGHNESS):
         wi, w, pdf, delta = conductor_sample(color, roughness, ior, fresnel, tint, wo, u1, u2, u3)
     elif kind == ROUGH_CONDUCTOR:
-        wi, w, pdf, delta = rough_conductor_sample(color, roughness, ior, fresnel, tint, wo, u1, u2,
+        wi, w, pdf, delta = rough_conductor_sample(color, roughness, ior, fresnel, tint, ms, wo, u1, u2,
                                                    u3)
     elif kind == PLASTIC:
-        wi, w, pdf, delta = plastic_sample(color, roughness, ior, wo, u1, u2, u3)
+        wi, w, pdf, delta = plastic_sample(color, roughness, ior, tint, ms, wo, u1, u2, u3)
     else:
         wi, w, pdf, delta = (0.0, 0.0, 1.0), _ZERO3, 0.0, False
     if flip:

@@ -2,7 +2,8 @@
 
 The material table `mt` (renderer.bsdfs.table.build_material_table) is the pair (mats,
 lobes) laid out in renderer.bsdfs.layout: per material its first lobe and lobe count, per
-lobe its kind, weight, color, roughness, ior, sides bitmask, Fresnel mode and tint.
+lobe its kind, weight, color, roughness, ior, sides bitmask, Fresnel mode, tint and
+multiscatter flag.
 
 Sampling picks one lobe with probability proportional to its selection weight
 luminance(weight * color) (luminance(weight) for dielectric and plastic, whose coat reflects
@@ -25,6 +26,7 @@ from renderer.bsdfs.layout import (
     L_FRESNEL,
     L_IOR,
     L_KIND,
+    L_MS,
     L_ROUGH,
     L_SIDES,
     L_TINT,
@@ -99,7 +101,7 @@ def bsdf_eval(mt, m, front, wo, wi):
         sel = _selection_weight(kind, weight, color, fresnel)
         total += sel
         fj, pj = lobe_eval(kind, color, float(lobes[j, L_ROUGH]), float(lobes[j, L_IOR]), fresnel,
-                           _row3(lobes, j, L_TINT), wo, wi)
+                           _row3(lobes, j, L_TINT), lobes[j, L_MS] != 0.0, wo, wi)
         f = (f[0] + weight[0] * fj[0], f[1] + weight[1] * fj[1], f[2] + weight[2] * fj[2])
         pdf += sel * pj
     return f, (pdf / total if total > 0.0 else 0.0)
@@ -146,7 +148,8 @@ def bsdf_sample(mt, m, front, wo, u_sel, u1, u2, u3):
     color = _row3(lobes, chosen, L_COLOR)
     wi, w, pdf, delta = lobe_sample(
         kind, color, float(lobes[chosen, L_ROUGH]), float(lobes[chosen, L_IOR]),
-        int(lobes[chosen, L_FRESNEL]), _row3(lobes, chosen, L_TINT), wo, u1, u2, u3
+        int(lobes[chosen, L_FRESNEL]), _row3(lobes, chosen, L_TINT), lobes[chosen, L_MS] != 0.0, wo, u1, u2,
+        u3
     )
     if w[0] == 0.0 and w[1] == 0.0 and w[2] == 0.0:
         return wi, _ZERO3, 0.0, EVENT_ABSORB

@@ -2,10 +2,15 @@
 
     f = f_spec(wo, wi) + color / pi * (1 - max(E(wo), E_ss(wo)))
 
-f_spec = F(wo.h) D G2 / (4 wo.z wi.z) is the layer's own (uncoloured) reflection with the
-exact dielectric Fresnel of index `ior`. The base is Lambertian, weighted by what Cycles
-estimates the layer leaves for the view direction: 1 - E(wo), with E Cycles' tabulated
-albedo estimate (renderer.bsdfs.spec_albedo; svm/closure.h `closure_layering_weight`).
+f_spec = F(wo.h) D G2 / (4 wo.z wi.z) is the layer's own reflection with Cycles' remapped
+dielectric Fresnel of index `ior`: F = mix(F0 x tint, 1, s), s = where the exact Fresnel lies
+between F0 and 1 (generalized Schlick with a negative exponent), so `tint` is the
+Principled BSDF's Specular Tint and white gives the exact Fresnel. The base is Lambertian,
+weighted by what Cycles estimates the layer leaves for the view direction: 1 - E(wo), with E
+Cycles' tabulated albedo estimate (renderer.bsdfs.spec_albedo; svm/closure.h
+`closure_layering_weight`), per channel and the largest channel taken, as Cycles does.
+With `ms` (Multiscatter GGX) f_spec is scaled by Cycles' energy compensation
+(renderer.bsdfs.multiscatter) and E by its part beyond the white-Fresnel scale.
 There is no (1 - E(wi)) factor, exactly as in Cycles, so f is not reciprocal; a path tracer
 that only follows paths from the camera never needs it to be.
 
@@ -33,10 +38,11 @@ from renderer.bsdfs.microfacet import (
     ggx_sample_visible_normal,
     reflect,
 )
-from renderer.bsdfs.spec_albedo import spec_albedo
+from renderer.bsdfs.multiscatter import dielectric_fss, energy_factor, ggx_energy
+from renderer.bsdfs.spec_albedo import f0_from_eta, spec_albedo
 from renderer.bsdfs.warp import square_to_cosine_hemisphere
-from renderer.kernels import kernel
-from renderer.kernels.vecmath import INV_PI, normalize
+from renderer.kernels import inline_kernel, kernel
+from renderer.kernels.vecmath import INV_PI, mul, normalize, scale
 
 _ZERO3 = (0.0, 0.0, 0.0)
 
@@ -63,50 +69,89 @@ def layer_albedo(mu, roughness, eta):
     return min(max(e, e_ss, 0.0), 1.0)
 
 
+@inline_kernel
+def _remap(x, f0):
+    """(x - f0) / (1 - f0) clamped to [0, 1]: where x lies between F0 and 1."""
+    return min(max((x - f0) / (1.0 - f0), 0.0), 1.0) if f0 < 1.0 else 1.0
+
+
 @kernel
-def plastic_eval(color, roughness, ior, wo, wi):
+def _layer(roughness, eta, tint, ms, mu):
+    """The layer seen from wo.z = mu: (f0 (rgb): F0 x tint; scale (rgb) of its reflection,
+    the multiscatter compensation or 1; base: the diffuse base's weight 1 - max over channels
+    of the layer's albedo; e_mean: the layer's mean albedo, for the lobe choice)."""
+    f0_real = f0_from_eta(eta)
+    f0 = (min(max(f0_real * tint[0], 0.0), 1.0), min(max(f0_real * tint[1], 0.0), 1.0),
+          min(max(f0_real * tint[2], 0.0), 1.0))
+    s = _remap(layer_albedo(mu, roughness, eta), f0_real)
+    albedo = (f0[0] + (1.0 - f0[0]) * s, f0[1] + (1.0 - f0[1]) * s, f0[2] + (1.0 - f0[2]) * s)
+    factor = (1.0, 1.0, 1.0)
+    darkening = (1.0, 1.0, 1.0)
+    if ms:
+        s_avg = _remap(dielectric_fss(eta), f0_real)
+        fss = (f0[0] + (1.0 - f0[0]) * s_avg, f0[1] + (1.0 - f0[1]) * s_avg, f0[2] + (1.0 - f0[2]) * s_avg)
+        factor = energy_factor(fss, roughness, mu)
+        e, _ = ggx_energy(roughness, mu)
+        # Cycles weighs the base by the albedo estimate times the lobe's weight, which holds
+        # the compensation over its white-Fresnel part (energy_scale): factor / (1 + (1 - E) / E).
+        inv_scale = e if e > 0.0 else 1.0
+        darkening = scale(factor, inv_scale)
+    layered = mul(albedo, darkening)
+    base = min(max(1.0 - max(layered[0], layered[1], layered[2]), 0.0), 1.0)
+    return f0, factor, base, (layered[0] + layered[1] + layered[2]) / 3.0
+
+
+@inline_kernel
+def _fresnel(f0, f0_real, eta, cos_oh, factor):
+    """Cycles' remapped Fresnel mix(F0 x tint, 1, s(real F)) per channel, times `factor`."""
+    s = _remap(fresnel_dielectric(cos_oh, eta)[0], f0_real)
+    return ((f0[0] + (1.0 - f0[0]) * s) * factor[0], (f0[1] + (1.0 - f0[1]) * s) * factor[1],
+            (f0[2] + (1.0 - f0[2]) * s) * factor[2])
+
+
+@kernel
+def plastic_eval(color, roughness, ior, tint, ms, wo, wi):
     if wo[2] <= 0.0 or wi[2] <= 0.0:
         return _ZERO3, 0.0
     eta = _layer_eta(ior)
-    e_o = layer_albedo(wo[2], roughness, eta)
-    kd = (1.0 - e_o) * INV_PI
+    f0, factor, base, e_o = _layer(roughness, eta, tint, ms, wo[2])
+    kd = base * INV_PI
     p_coat = _coat_probability(color, e_o)
-    spec = 0.0
+    spec = _ZERO3
     pdf = (1.0 - p_coat) * wi[2] * INV_PI
     if roughness >= SMOOTH_ROUGHNESS:
         alpha = roughness * roughness
         h = normalize((wo[0] + wi[0], wo[1] + wi[1], wo[2] + wi[2]))
         cos_oh = wo[0] * h[0] + wo[1] * h[1] + wo[2] * h[2]
-        F = fresnel_dielectric(cos_oh, eta)[0]
-        spec = F * ggx_D(alpha, h) * ggx_G2(alpha, wo, wi) / (4.0 * wo[2] * wi[2])
+        F = _fresnel(f0, f0_from_eta(eta), eta, cos_oh, factor)
+        spec = scale(F, ggx_D(alpha, h) * ggx_G2(alpha, wo, wi) / (4.0 * wo[2] * wi[2]))
         pdf += p_coat * ggx_reflection_pdf(alpha, wo, wi)
-    f = (color[0] * kd + spec, color[1] * kd + spec, color[2] * kd + spec)
+    f = (color[0] * kd + spec[0], color[1] * kd + spec[1], color[2] * kd + spec[2])
     return f, pdf
 
 
 @kernel
-def plastic_sample(color, roughness, ior, wo, u1, u2, u3):
+def plastic_sample(color, roughness, ior, tint, ms, wo, u1, u2, u3):
     """u3 picks layer or base; (u1, u2) sample the chosen one. The weight uses the full
     mixture f and pdf (of the non-delta parts), so it equals eval's f cos / pdf."""
     if wo[2] <= 0.0:
         return (0.0, 0.0, 1.0), _ZERO3, 0.0, False
     eta = _layer_eta(ior)
-    e_o = layer_albedo(wo[2], roughness, eta)
+    f0, factor, base, e_o = _layer(roughness, eta, tint, ms, wo[2])
     p_coat = _coat_probability(color, e_o)
     smooth = roughness < SMOOTH_ROUGHNESS
     if u3 < p_coat:
         if smooth:
             wi = (-wo[0], -wo[1], wo[2])
-            F = fresnel_dielectric(wo[2], eta)[0]
-            w = F / p_coat
-            return wi, (w, w, w), p_coat, True
+            F = _fresnel(f0, f0_from_eta(eta), eta, wo[2], factor)
+            return wi, scale(F, 1.0 / p_coat), p_coat, True
         h = ggx_sample_visible_normal(roughness * roughness, wo, u1, u2)
         wi = reflect(wo, h)
     else:
         wi = square_to_cosine_hemisphere(u1, u2)
     if wi[2] <= 0.0:
         return wi, _ZERO3, 0.0, False
-    f, pdf = plastic_eval(color, roughness, ior, wo, wi)
+    f, pdf = plastic_eval(color, roughness, ior, tint, ms, wo, wi)
     if pdf <= 0.0:
         return wi, _ZERO3, 0.0, False
     s = wi[2] / pdf

@@ -34,4 +34,5 @@ def build_material_table(materials: list[Material]) -> tuple:
         row[LOBE.slice("sides")] = SIDES[lobe.sides]
         row[LOBE.slice("fresnel")] = FRESNEL_MODES[lobe.fresnel]
         row[LOBE.slice("tint")] = lobe.tint
+        row[LOBE.slice("multiscatter")] = float(lobe.multiscatter)
     return mats, table

@@ -18,7 +18,8 @@ import numpy as np
 from ..kernels import inline_kernel, kernel
 from ..kernels.rng import uniform
 from ..kernels.vecmath import add, madd, max3, mul, scale
-from ..lights.sample import connect_light, light_has_point, light_pmf, light_point, pick_light
+from ..lights.environment import connect_light_env
+from ..lights.sample import light_has_point, light_pmf, light_point, pick_light
 from ..lights.table import LT_CDF
 from . import nee_batch
 from .aovs import aov_after_medium, aov_medium_segment
@@ -79,18 +80,20 @@ def _scatter_in_medium(ps, i, beta, depth, x, wi, pdf):
 
 
 @kernel
-def _connect_light(lt, light, lp, x, u1, u2):
+def _connect_light(lt, env, light, lp, x, u1, u2):
     """connect_light compiled once for both of _medium_nee's places in shade_media (inlined,
-    it compiled twice there); shade_surface inlines its own copy, hot on surfaces."""
-    return connect_light(lt, light, lp, x, u1, u2)
+    it compiled twice there); shade_surface inlines its own copy, hot on surfaces. env: the
+    environment map's tables, None for a constant world."""
+    return connect_light_env(lt, env, light, lp, x, u1, u2)
 
 
 @inline_kernel
-def _medium_nee(ps, i, md, lt, cfg, x, d, beta, key, dim, sh, s, light, lp, weight):
+def _medium_nee(ps, i, md, lt, env, cfg, x, d, beta, key, dim, sh, s, light, lp, weight):
     """Next-event estimation from medium point x (with path weight `weight` to reach it).
     Uses dimensions dim .. dim + MEDIUM_NEE_DIMS - 1 whether or not it emits a shadow ray
     (so the batched next-event vertex, nee_batch, keeps the same random numbers)."""
-    wi, dist, le, pdf, is_delta = _connect_light(lt, light, lp, x, uniform(key, dim), uniform(key, dim + 1))
+    wi, dist, le, pdf, is_delta = _connect_light(lt, env, light, lp, x, uniform(key, dim),
+                                                 uniform(key, dim + 1))
     stack = ps.stack[i]
     p_light = pdf * light_pmf(lt, light)
     if p_light <= 0.0 or max3(le) <= 0.0:
@@ -137,12 +140,13 @@ def _flush_nee_batch(count, nb, ps, cfg, sh, s):
 
 
 @kernel
-def shade_media(n, ps, prim, lt, md, cfg, L, sh, nb, grid_md):
+def shade_media(n, ps, prim, lt, env, md, cfg, L, sh, nb, grid_md):
     """The participating media along each live path's segment [0, hit): emission, the
     next-event vertex, free-flight sampling. A path that scatters gets its next ray here
     (PATH_SCATTERED); one that reaches the segment's end goes on to shade_surface
     (PATH_ACTIVE). Returns the number of shadow rays written (from 0). grid_md: md when the
-    scene has grid media, None otherwise (then no grid tracker is compiled)."""
+    scene has grid media, None otherwise (then no grid tracker is compiled). env: the
+    environment map's tables, None for a constant world."""
     max_bounces = cfg[CFG_MAX_BOUNCES]
     sampling = cfg[CFG_SAMPLING]
     uniform_channel = cfg[CFG_UNIFORM_CHANNEL] != 0
@@ -202,7 +206,8 @@ def shade_media(n, ps, prim, lt, md, cfg, L, sh, nb, grid_md):
             seg = segment(md, stack, t_hit)
             tn, wn, dim = nee_vertex_on(seg, o, d, t_hit, lp, beta, key, dim, use_eq, uniform_channel)
             if max3(wn) > 0.0:
-                s = _medium_nee(ps, i, md, lt, cfg, madd(o, d, tn), d, beta, key, dim, sh, s, light, lp, wn)
+                s = _medium_nee(ps, i, md, lt, env, cfg, madd(o, d, tn), d, beta, key, dim, sh, s, light, lp,
+                                wn)
             dim += MEDIUM_NEE_DIMS
             did_nee = True
         if homogeneous:
@@ -228,7 +233,7 @@ def shade_media(n, ps, prim, lt, md, cfg, L, sh, nb, grid_md):
             light = pick_light(cdf, uniform(key, dim))
             lp = light_point(lt, light, uniform(key, dim + 1), uniform(key, dim + 2))
             dim += 3
-            s = _medium_nee(ps, i, md, lt, cfg, x, d, beta, key, dim, sh, s, light, lp, (1.0, 1.0, 1.0))
+            s = _medium_nee(ps, i, md, lt, env, cfg, x, d, beta, key, dim, sh, s, light, lp, (1.0, 1.0, 1.0))
             dim += MEDIUM_NEE_DIMS
         wi, pw, ph_pdf = sample_phase(md, stack, x, d, uniform(key, dim), uniform(key, dim + 1),
                                       uniform(key, dim + 2))

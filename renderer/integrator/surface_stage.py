@@ -24,9 +24,8 @@ from ..bsdfs.material import (
 from ..kernels import inline_kernel, kernel
 from ..kernels.rng import uniform
 from ..kernels.vecmath import add, dot, madd, max3, mul, neg, normalize, onb, scale, sub, to_local, to_world
+from ..lights.environment import connect_light_env, escaped_radiance_env
 from ..lights.sample import (
-    connect_light,
-    escaped_radiance,
     light_pmf,
     light_point,
     pick_light,
@@ -67,14 +66,16 @@ MAX_CROSSINGS = 256  # interfaces a path may pass before it is ended (guards ope
 
 
 @kernel
-def shade_surface(n, ps, prim, bu, bv, geo, mt, override, lt, env_light, sun_rows, cfg, L, sh, s, cam, mist):
+def shade_surface(n, ps, prim, bu, bv, geo, mt, override, lt, env_light, sun_rows, env, cfg, L, sh, s, cam,
+                  mist):
     """Shade the closest hits of paths 0..n-1 that are PATH_ACTIVE (prim -1 = escaped;
     ps.tmax holds the hit distance): emission, next-event estimation, BSDF sampling, Russian
     roulette. Writes new rays into ps, kills finished paths, appends shadow rays to sh from
-    index s. cam (the camera tuple) and mist (start, 1 / depth, falloff) serve the Mist
-    pass. override[i] >= 0 (renderer.shading.stage, only in scenes with shader programs;
-    empty otherwise) is the row of mt to shade path i with instead of its triangle's
-    material. Returns the number of shadow rays written in all."""
+    index s. env: the environment map's tables, None for a constant world. cam (the camera
+    tuple) and mist (start, 1 / depth, falloff) serve the Mist pass. override[i] >= 0
+    (renderer.shading.stage, only in scenes with shader programs; empty otherwise) is the
+    row of mt to shade path i with instead of its triangle's material. Returns the number
+    of shadow rays written in all."""
     max_bounces = cfg[CFG_MAX_BOUNCES]
     sampling = cfg[CFG_SAMPLING]
     transparent = cfg[CFG_FILM_TRANSPARENT] != 0
@@ -98,15 +99,15 @@ def shade_surface(n, ps, prim, bu, bv, geo, mt, override, lt, env_light, sun_row
 
         # --- escaped: environment and sun discs ------------------------------------------
         if p < 0:
-            env = env_light
+            env_row = env_light
             if depth == 0 and transparent:
                 # Cycles' transparent background: a camera ray that reaches the world having
                 # only passed through (interfaces, transparent lobes, media unscattered)
                 # leaves the world out and counts its mean throughput as transparency
                 # (alpha = 1 - transparency); sun discs stay visible, as Cycles' distant lights.
                 L[pid, ALPHA] += (beta[0] + beta[1] + beta[2]) / 3.0
-                env = -1
-            le, pdf_light = escaped_radiance(lt, env, sun_rows, d)
+                env_row = -1
+            le, pdf_light = escaped_radiance_env(lt, env_row, sun_rows, env, d)
             if max3(le) > 0.0:
                 w = hit_weight(ps.mis_pdf[i], pdf_light, sampling)
                 add_weighted_radiance(L, pid, beta, le, w)
@@ -164,8 +165,8 @@ def shade_surface(n, ps, prim, bu, bv, geo, mt, override, lt, env_light, sun_row
         wo = to_local(neg(d), ts, tt, sn)
 
         if sampling != SAMPLING_BSDF and cdf.shape[0] > 1:
-            s, dim = _surface_nee(lt, mt, m, front, x, ng, wo, ts, tt, sn, beta, sampling, pid, key, dim,
-                                  stack, sh, s)
+            s, dim = _surface_nee(lt, env, mt, m, front, x, ng, wo, ts, tt, sn, beta, sampling, pid, key,
+                                  dim, stack, sh, s)
 
         # BSDF sampling
         wil, w, pdf, event = bsdf_sample(mt, m, front, wo, uniform(key, dim), uniform(key, dim + 1),
@@ -196,15 +197,15 @@ def shade_surface(n, ps, prim, bu, bv, geo, mt, override, lt, env_light, sun_row
 
 
 @inline_kernel
-def _surface_nee(lt, mt, m, front, x, ng, wo, ts, tt, sn, beta, sampling, pid, key, dim, stack, sh, s):
+def _surface_nee(lt, env, mt, m, front, x, ng, wo, ts, tt, sn, beta, sampling, pid, key, dim, stack, sh, s):
     """Next-event estimation at surface point x: pick a light and a point on it, weigh the
     connection by the BSDF and MIS, and write its shadow ray at index s when it carries
     light. Returns (next shadow index, next dimension)."""
     cdf = lt[LT_CDF]  # what pick_light searches: L + 1 entries
     light = pick_light(cdf, uniform(key, dim))
     lp = light_point(lt, light, uniform(key, dim + 1), uniform(key, dim + 2))
-    wi, dist, le, pdf, is_delta = connect_light(lt, light, lp, x, uniform(key, dim + 3),
-                                                uniform(key, dim + 4))
+    wi, dist, le, pdf, is_delta = connect_light_env(lt, env, light, lp, x, uniform(key, dim + 3),
+                                                    uniform(key, dim + 4))
     dim += 5
     p_light = pdf * light_pmf(lt, light)
     if p_light > 0.0 and max3(le) > 0.0:

@@ -12,7 +12,8 @@ from ..compile import MAX_STACK, CompiledScene
 from ..film import Film
 from ..geometry import Intersector
 from ..kernels.warmup import KernelCall, warm_up
-from ..lights.sample import connect_light, escaped_radiance, triangle_light_pdf
+from ..lights.environment import connect_light_env, escaped_radiance_env
+from ..lights.sample import triangle_light_pdf
 from ..lights.table import kernel_arrays
 from ..media.layout import dda_scratch
 from ..media.stack_phase import phase_eval, sample_phase
@@ -118,7 +119,8 @@ class Tracer:
             (K.start_paths, (ps, self.pixel_of_pid, cs.camera, cs.width, cs.height, 0, 0, 1, 0,
                              self.init_stack)),
             (K.shade_surface, (1, ps, prim, bu, bv, cs.geometry, self.mt, self.override, lt,
-                               cs.lights.env_light, cs.lights.sun_rows, cfg, L, sh, 0, cs.camera, self.mist)),
+                               cs.lights.env_light, cs.lights.sun_rows, cs.environment, cfg, L, sh, 0,
+                               cs.camera, self.mist)),
             (K.compact_paths, (1, ps)),
             (K.splat, (1, L, self.pixel_of_pid, np.zeros((1, 3), np.float64), np.zeros((1, 3), np.float64),
                        np.zeros(1, np.int64), np.zeros(1, np.int64), np.zeros(1, np.float64), self.no_aov)),
@@ -127,7 +129,8 @@ class Tracer:
             calls.append((shade_programs, (1, ps, prim, bu, bv, cs.geometry, cs.shading.arrays, self.mt,
                                            self.regs, self.override, self.max_lobes, FIELD_OFFSETS)))
         if cs.has_media:
-            calls.append((K.shade_media, (1, ps, prim, lt, self.md, cfg, L, sh, self.nb, self.grid_md)))
+            calls.append((K.shade_media, (1, ps, prim, lt, cs.environment, self.md, cfg, L, sh, self.nb,
+                                          self.grid_md)))
         if cs.needs_shadow_walk:
             calls.append((K.walk_shadows, (1, sh, prim, np.zeros(1, np.float32), self.remaining, cs.geometry,
                                            cs.materials, self.md, cfg, L, self.grid_md)))
@@ -156,9 +159,9 @@ class Tracer:
             (bsdf_sample, (self.mt, m, True, v, 0.5, 0.5, 0.5, 0.5)),
             # Compiled into shade_surface with or without passes (L's type is the same).
             (aov_surface, (self.L, m, self.mt, m, True, v, v, m, v, cs.camera, self.mist)),
-            (connect_light, (lt, light, v, v, 0.5, 0.5)),
+            (connect_light_env, (lt, cs.environment, light, v, v, 0.5, 0.5)),
             (triangle_light_pdf, (lt, tri, v, v, 1.0)),
-            (escaped_radiance, (lt, light, cs.lights.sun_rows, v)),
+            (escaped_radiance_env, (lt, light, cs.lights.sun_rows, cs.environment, v)),
         ]
         if cs.has_media:
             stack = self.init_stack
@@ -188,13 +191,14 @@ class Tracer:
             self.stats["rays"] += live
             count = 0
             if cs.has_media:
-                count = K.shade_media(live, ps, prim, self.lt, self.md, self.cfg, self.L, sh, self.nb,
-                                      self.grid_md)
+                count = K.shade_media(live, ps, prim, self.lt, cs.environment, self.md, self.cfg, self.L, sh,
+                                      self.nb, self.grid_md)
             if cs.shading is not None:
                 shade_programs(live, ps, prim, bu, bv, cs.geometry, cs.shading.arrays, self.mt, self.regs,
                                self.override, self.max_lobes, FIELD_OFFSETS)
             count = K.shade_surface(live, ps, prim, bu, bv, cs.geometry, self.mt, self.override, self.lt,
-                                    cs.lights.env_light, cs.lights.sun_rows, self.cfg, self.L, sh, count,
+                                    cs.lights.env_light, cs.lights.sun_rows, cs.environment, self.cfg, self.L,
+                                    sh, count,
                                     cs.camera, self.mist)
             if count:
                 self._shadows(count)

@@ -7,7 +7,8 @@ Rows (structure of arrays, float32 unless noted), L lights:
   vec_a   (L, 3)        TRIANGLE edge v1 - v0; SPOT/SUN unit axis (SUN: toward the sun)
   vec_b   (L, 3)        TRIANGLE edge v2 - v0
   color   (L, 3)        TRIANGLE front radiance; POINT/SPOT intensity (W/sr); SUN radiance
-                        (or irradiance for a delta sun); ENVIRONMENT radiance
+                        (or irradiance for a delta sun); ENVIRONMENT radiance (its
+                        mean over the sphere with a map, renderer.lights.environment)
   color_b (L, 3)        TRIANGLE back radiance
   param   (L, 4)        TRIANGLE: area; SPOT: cos(half angle), blend width in cos;
                         SUN: cos(half angle) (1 = delta), solid angle
@@ -26,6 +27,8 @@ from typing import NamedTuple
 import numpy as np
 
 from renderer.scene import LUMINANCE
+
+from .environment_map import mean_radiance
 
 TRIANGLE, POINT, SPOT, SUN, ENVIRONMENT = 0, 1, 2, 3, 4
 
@@ -129,7 +132,7 @@ def build_light_table(tris, materials_emission, materials_sides, scene_lights, e
                 cos_half, solid, color = 1.0, 0.0, e
             power = _luminance(e) * math.pi * scene_radius**2
             extra.append((SUN, (0, 0, 0), axis, color, (cos_half, solid, 0, 0), power))
-    env = np.array(environment.radiance, np.float64)
+    env = mean_radiance(environment)  # the colour of a constant world
     if _luminance(env) > 0:
         power = _luminance(env) * math.pi * 4 * math.pi * scene_radius**2
         extra.append((ENVIRONMENT, (0, 0, 0), (0, 0, 1), env, (0, 0, 0, 0), power))
