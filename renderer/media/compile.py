@@ -56,7 +56,9 @@ def build_media_data(media: list[Medium], use_majorant_grid: bool = True) -> Med
     """Validate `media` and flatten them into MediaData (an empty list gives M = 0).
 
     With use_majorant_grid False every grid medium gets a single majorant cell holding its
-    global maximum density (the paper's single bound), which is correct but slower.
+    global maximum density (the paper's single bound), which is correct but slower; it is
+    then always null-collision tracked (no cell is flagged for regular tracking), as the
+    paper's estimator.
     """
     params = np.zeros((len(media), PARAMS.size), np.float32)
     index = np.zeros((len(media), INDEX.size), np.int64)
@@ -132,7 +134,9 @@ def _fill_medium(params: np.ndarray, index: np.ndarray, med: Medium, store: _Arr
     cells = _majorant_cells(med.density.shape, use_majorant_grid)
     emits = bool(index[I_HAS_EMISSION])
     diagonal = math.sqrt(sum((n / c) ** 2 for c, n in zip(cells, axis_lengths)))
-    exact_excess = EXACT_DEPTH / max(_max_sigma_t(med) * diagonal, 1e-300)  # in density units
+    exact_excess = math.inf  # the paper's single bound: null collisions only
+    if use_majorant_grid:  # in density units
+        exact_excess = EXACT_DEPTH / max(_max_sigma_t(med) * diagonal, 1e-300)
     key = (id(med.density), cells, emits, emits_constant, id(med.flame), id(med.temperature),
            med.blackbody_intensity, exact_excess)
     offset, dims = store.majorant(key, lambda: _majorant(med, cells, emits, emits_constant, blackbody_grid,
