@@ -3,9 +3,10 @@
 Renders the Cornell box with an n^3 float32 smoke grid (default 256: 64 MB) on two worker
 processes and prints, per worker, the peak RSS, PSS (shared pages divided among the
 processes mapping them) and USS (pages of its own), read from /proc/PID/smaps_rollup
-(Linux) while the render runs. With the scene's arrays mapped from the shipment file
-(renderer/workers.py), the grid counts once per machine: each worker's USS stays far below
-the grid's size.
+(Linux) while the render runs, and the same at the last progress report, when both
+workers hold the scene (a page mapped by one process only counts as its own). With the
+scene's arrays mapped from the shipment file (renderer/workers.py), the grid counts once
+per machine: each worker's USS stays far below the grid's size.
 """
 
 from __future__ import annotations
@@ -40,19 +41,21 @@ def main() -> int:
     smoke = grid_medium("smoke", density, (0.0, -0.5, 0.0), (0.4, 0.4, 0.4), (2.0, 2.0, 2.0), (8.0, 8.0, 8.0))
     scene = with_grid_medium(cornell_box(size=64, spp=64, boxes=False), smoke)
     peak: dict[int, dict[str, int]] = {}
+    last: dict[int, dict[str, int]] = {}
     for _ in render_progressive(scene, workers=2, in_process=False):
         for pid in worker_pids():
             try:
-                now = smaps(pid)
+                last[pid] = now = smaps(pid)
             except OSError:
                 continue
             old = peak.setdefault(pid, now)
             peak[pid] = {k: max(old[k], now[k]) for k in now}
     mb = 1024 * 1024
     print(f"grid {n}^3: {density.nbytes / mb:.0f} MB")
-    for pid, m in sorted(peak.items()):
-        rss, pss, uss = (m[k] / mb for k in ("rss", "pss", "uss"))
-        print(f"worker {pid}: peak RSS {rss:.0f} MB, PSS {pss:.0f} MB, USS {uss:.0f} MB")
+    for what, table in (("peak", peak), ("last", last)):
+        for pid, m in sorted(table.items()):
+            rss, pss, uss = (m[k] / mb for k in ("rss", "pss", "uss"))
+            print(f"worker {pid} {what}: RSS {rss:.0f} MB, PSS {pss:.0f} MB, USS {uss:.0f} MB")
     return 0
 
 
