@@ -476,6 +476,21 @@ def test_transformed_grid_matches_the_exact_optical_depth(render, name):
     assert_bounded_estimate(render(scene), expected_transmittance(scene, medium, sub=16), name)
 
 
+@pytest.mark.parametrize("name", ["rotated_scaled", "mirrored"])
+def test_transformed_spiky_grid_matches_the_exact_optical_depth(render, name):
+    """Regular tracking under a placement: a random 6x5x4 grid of 1 with three voxels of 1e5
+    (their cells are regular-tracked), rotated, scaled or mirrored, seen at a slant."""
+    linear, offset = TRANSFORMS[name]
+    to_world = np.eye(4)
+    to_world[:3, :3], to_world[:3, 3] = linear, offset
+    density = np.ones((4, 5, 6))
+    density[1, 2, 3] = density[2, 1, 1] = density[2, 3, 4] = 1e5
+    medium = grid(density, sigma_a=(0.02, 0.02, 0.02), p0=(-0.6, -0.5, -0.4), p1=(0.5, 0.6, 0.7),
+                  to_world=to_world)
+    scene = grid_in_view(medium, half=1.8, size=12, spp=256)
+    assert_bounded_estimate(render(scene), expected_transmittance(scene, medium, sub=16), name)
+
+
 # -------------------------------------------------------------------------- bad input
 
 
