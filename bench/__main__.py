@@ -5,7 +5,7 @@ Other studies register here as subcommands (see COMMANDS)."""
 import importlib
 import sys
 
-COMMANDS = {"speed": "bench.speed", "convergence": "bench.convergence"}
+COMMANDS = {"speed": "bench.speed", "convergence": "bench.convergence", "contrast": "bench.contrast"}
 
 
 def main(argv: list[str]) -> int:

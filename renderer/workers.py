@@ -4,7 +4,10 @@ Spawned processes (Blender cannot fork; spawn everywhere alike) that live across
 in this process: a second render or the next animation frame reuses them. The scene is
 pickled once per render to a temporary file named by a hash of its contents; a task
 carries that (key, path), and a worker loads the scene and builds its tracer only for a
-key it has not got (it keeps one tracer). The parent (renderer.render) watches each
+key it has not got (it keeps one tracer). The scene's arrays (grids, meshes) go into that
+file raw, beside the pickle (protocol 5, out of band), and workers map them copy-on-write
+instead of reading them: all workers' arrays are views of the same pages, so a grid takes
+memory once per machine, not once per worker (issue 18, item 3). The parent (renderer.render) watches each
 worker's pipe and process sentinel, so it can terminate one stuck inside a kernel and
 notice one that died.
 
@@ -18,10 +21,12 @@ from __future__ import annotations
 import atexit
 import dataclasses
 import hashlib
+import mmap
 import multiprocessing
 import os
 import pickle
 import signal
+import struct
 import tempfile
 import threading
 import time
@@ -45,26 +50,92 @@ class Shipment(NamedTuple):
     path: str
 
 
+def tracer_settings(settings: IntegratorSettings) -> IntegratorSettings:
+    """The settings with the fields a tracer does not read normalised, so another seed, spp
+    or time limit of the same scene does not make the workers rebuild their tracers."""
+    return dataclasses.replace(settings, seed=0, spp=1, time_limit=0.0)
+
+
 def scene_payload(cs: CompiledScene, settings: IntegratorSettings) -> tuple[str, bytes]:
-    """(hash, pickle) of what a worker needs to build the tracer: the same key, the same tracer.
-    Fields a tracer does not read are normalised, so another seed, spp or time limit of the
-    same scene does not make the workers rebuild their tracers."""
-    tracer_settings = dataclasses.replace(settings, seed=0, spp=1, time_limit=0.0)
-    data = pickle.dumps((cs, tracer_settings), protocol=pickle.HIGHEST_PROTOCOL)
+    """(hash, pickle) of what a cluster worker needs to build the tracer (renderer.cluster):
+    the same key, the same tracer. The local pool ships the arrays out of band (shipped)."""
+    data = pickle.dumps((cs, tracer_settings(settings)), protocol=pickle.HIGHEST_PROTOCOL)
     return hashlib.blake2b(data, digest_size=16).hexdigest(), data
+
+
+# Shipment file: header (pickle length, buffer count), then (offset, size) per buffer, the
+# pickle, and the buffers, each at a multiple of ALIGN bytes (numba types an array by its
+# alignment too: a misaligned view would compile every kernel again).
+_HEADER = struct.Struct("<QQ")
+_ENTRY = struct.Struct("<QQ")
+ALIGN = 64
+# Shipment files a worker still mapped when the render ended (Windows cannot delete them).
+_leftovers: list[str] = []
 
 
 @contextmanager
 def shipped(cs: CompiledScene, settings: IntegratorSettings) -> Iterator[Shipment]:
-    """The scene pickled once to a temporary file for the workers, removed after the render."""
-    key, data = scene_payload(cs, settings)
+    """The scene written once to a temporary file for the workers, removed after the render."""
+    buffers: list[pickle.PickleBuffer] = []
+    data = pickle.dumps((cs, tracer_settings(settings)), protocol=5, buffer_callback=buffers.append)
+    raws = [b.raw() for b in buffers]
+    digest = hashlib.blake2b(data, digest_size=16)
+    for raw in raws:
+        digest.update(raw)
+    key = digest.hexdigest()
+    _remove_leftovers()
     fd, path = tempfile.mkstemp(prefix=f"haze-scene-{key[:8]}-", suffix=".pkl")
     try:
         with os.fdopen(fd, "wb") as f:
-            f.write(data)
+            _write_shipment(f, data, raws)
         yield Shipment(key, path)
     finally:
+        _remove(path)
+
+
+def _write_shipment(f, data: bytes, raws: list[memoryview]) -> None:
+    offsets, at = [], _aligned(_HEADER.size + _ENTRY.size * len(raws) + len(data))
+    for raw in raws:
+        offsets.append(at)
+        at = _aligned(at + raw.nbytes)
+    f.write(_HEADER.pack(len(data), len(raws)))
+    for offset, raw in zip(offsets, raws):
+        f.write(_ENTRY.pack(offset, raw.nbytes))
+    f.write(data)
+    for offset, raw in zip(offsets, raws):
+        f.seek(offset)
+        f.write(raw)
+    f.truncate(at)
+
+
+def _aligned(n: int) -> int:
+    return -(-n // ALIGN) * ALIGN
+
+
+def load_shipment(path: str):
+    """What shipped() pickled, its arrays viewing a copy-on-write map of the file (pages
+    shared with every other process that maps it, until one writes to them)."""
+    with open(path, "rb") as f:
+        mm = mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_COPY)
+    view = memoryview(mm)
+    size, count = _HEADER.unpack_from(view, 0)
+    entries = [_ENTRY.unpack_from(view, _HEADER.size + _ENTRY.size * i) for i in range(count)]
+    start = _HEADER.size + _ENTRY.size * count
+    return pickle.loads(view[start:start + size], buffers=[view[o:o + n] for o, n in entries])
+
+
+def _remove(path: str) -> None:
+    try:
         Path(path).unlink(missing_ok=True)
+    except OSError:  # still mapped by a worker (Windows): removed later
+        _leftovers.append(path)
+
+
+def _remove_leftovers() -> None:
+    paths = list(_leftovers)
+    _leftovers.clear()
+    for path in paths:
+        _remove(path)
 
 
 # --- worker processes -------------------------------------------------------------------
@@ -99,8 +170,7 @@ def _worker_main(conn: Connection) -> None:
 def _load_tracer(shipment: Shipment, conn: Connection) -> Tracer:
     from .integrator.wavefront import Tracer
 
-    with open(shipment.path, "rb") as f:
-        cs, settings = pickle.load(f)
+    cs, settings = load_shipment(shipment.path)
     tracer = Tracer(cs, settings, lambda names: conn.send(("compile", names)))
     conn.send(("ready",))
     return tracer
@@ -271,6 +341,7 @@ def borrowed_pool() -> Iterator[Pool]:
 def shutdown_workers() -> None:
     """Stop the worker processes (the add-on calls this when it is disabled; also at exit)."""
     pool.shutdown()
+    _remove_leftovers()  # no worker maps them any more
 
 
 def start_workers(n: int) -> None:

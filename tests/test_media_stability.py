@@ -408,6 +408,43 @@ def test_one_dense_voxel_in_a_large_empty_grid_is_fast(render):
     assert seconds < 20.0, seconds
 
 
+def _spike_in_view(contrast: float, background: float) -> tuple[Medium, Scene]:
+    """A 32^3 absorber of background density with one voxel of `contrast` at sigma_t 1: the
+    voxel's tent is opaque at its centre (up to 3e6 optical depth) and fades out over one
+    voxel, which the 6x6 view (about three voxels across) resolves."""
+    n = 32
+    density = np.full((n, n, n), background, np.float32)
+    density[n // 2, n // 2, n // 2] = contrast
+    medium = grid(density, sigma_a=(1.0, 1.0, 1.0))
+    centre = 0.5 / n
+    return medium, grid_in_view(medium, size=6, spp=64, fov=0.8, position=(centre, centre, 3.0))
+
+
+@pytest.mark.parametrize("contrast", [1e2, 1e4, 1e6, 1e8])
+def test_contrast_of_a_spike_over_a_background(render, contrast):
+    """Regular tracking crosses the cells around the spike (renderer/media/regular.py):
+    the image matches the exact optical depth at every contrast."""
+    medium, scene = _spike_in_view(contrast, 1.0)
+    assert_bounded_estimate(render(scene), expected_transmittance(scene, medium, sub=16), f"{contrast:g}")
+
+
+def test_lone_voxel_of_1e8_among_zeros(render):
+    medium, scene = _spike_in_view(1e8, 0.0)
+    assert_bounded_estimate(render(scene), expected_transmittance(scene, medium, sub=16), "lone voxel")
+
+
+def test_dense_thin_shell(render):
+    """A sphere shell one voxel thick of density 1e4 in an empty 32^3 grid (sigma_t 1: 300
+    optical depths across the shell wall), seen whole."""
+    n = 32
+    c = (np.arange(n) + 0.5) / n - 0.5
+    z, y, x = np.meshgrid(c, c, c, indexing="ij")
+    shell = np.abs(np.sqrt(x * x + y * y + z * z) - 0.35) < 0.5 / n
+    medium = grid(np.where(shell, 1e4, 0.0), sigma_a=(1.0, 1.0, 1.0))
+    scene = grid_in_view(medium, size=8, spp=64, fov=22.0, position=(0.01, 0.02, 3.0))
+    assert_bounded_estimate(render(scene), expected_transmittance(scene, medium, sub=16), "shell")
+
+
 def _rotation(axis, degrees: float) -> np.ndarray:
     axis = np.asarray(axis, np.float64) / np.linalg.norm(axis)
     a = math.radians(degrees)
@@ -436,6 +473,21 @@ def test_transformed_grid_matches_the_exact_optical_depth(render, name):
                   to_world=to_world)
     scene = grid_in_view(medium, half=1.8, size=12, spp=256)
     # pixels on the box's silhouette are discontinuous: many sub-pixel rays
+    assert_bounded_estimate(render(scene), expected_transmittance(scene, medium, sub=16), name)
+
+
+@pytest.mark.parametrize("name", ["rotated_scaled", "mirrored"])
+def test_transformed_spiky_grid_matches_the_exact_optical_depth(render, name):
+    """Regular tracking under a placement: a random 6x5x4 grid of 1 with three voxels of 1e5
+    (their cells are regular-tracked), rotated, scaled or mirrored, seen at a slant."""
+    linear, offset = TRANSFORMS[name]
+    to_world = np.eye(4)
+    to_world[:3, :3], to_world[:3, 3] = linear, offset
+    density = np.ones((4, 5, 6))
+    density[1, 2, 3] = density[2, 1, 1] = density[2, 3, 4] = 1e5
+    medium = grid(density, sigma_a=(0.02, 0.02, 0.02), p0=(-0.6, -0.5, -0.4), p1=(0.5, 0.6, 0.7),
+                  to_world=to_world)
+    scene = grid_in_view(medium, half=1.8, size=12, spp=256)
     assert_bounded_estimate(render(scene), expected_transmittance(scene, medium, sub=16), name)
 
 

@@ -40,11 +40,14 @@ def assert_same_bits(a: Film, b: Film) -> None:
 
 
 def lone_dense_voxel(size: int = 24, spp: int = 4) -> Scene:
-    """Issue 17's render that never ends: a grid that is zero but for one voxel of 1e8."""
+    """Issue 17's render that never ends: a grid that is zero but for one voxel of 1e8. The
+    voxel emits (flame), so the cells around it are not regular-tracked (issue 18,
+    renderer/media/regular.py) and a ray through them still makes ~1e7 null collisions;
+    the empty cells elsewhere cost nothing, as before."""
     density = np.zeros((8, 8, 8), np.float32)
     density[4, 4, 4] = 1e8
     medium = grid_medium("lone", density, (0.0, 0.0, 0.0), (0.5, 0.5, 0.5), sigma_a=(0.5, 0.5, 0.5),
-                         sigma_s=(0.5, 0.5, 0.5))
+                         sigma_s=(0.5, 0.5, 0.5), emission=(0.1, 0.1, 0.1), flame=density)
     return with_grid_medium(cornell_box(size=size, spp=spp), medium)
 
 
@@ -128,6 +131,35 @@ def test_a_worker_builds_its_tracer_once_per_scene(tmp_path):
     # ("compile" first when the kernels are not cached yet: that depends on earlier tests.)
     assert [r[0] for r in replies if r[0] != "compile"] == ["ready", "done", "done", "ready", "done"]
     assert all((r[2].n == 1).all() for r in replies if r[0] == "done")
+
+
+def _smoke(value: float) -> Scene:
+    density = np.full((16, 16, 16), 0.5, np.float32)
+    density[3, 4, 5] = value
+    smoke = grid_medium("smoke", density, (0.0, -0.5, 0.0), (0.4, 0.4, 0.4), (1, 1, 1), (1, 1, 1))
+    return with_grid_medium(cornell_box(size=8, spp=1, boxes=False), smoke)
+
+
+def test_a_shipment_maps_its_arrays_and_its_key_covers_them():
+    """Workers get the scene's arrays as views of one copy-on-write map of the shipment file
+    (one copy per machine, issue 18 item 3), writable and aligned as the parent's were (so the
+    kernels' types, and cache entries, are the same); the key hashes the arrays too."""
+    from renderer import workers
+
+    scene = _smoke(2.0)
+    cs = compile_scene(scene)
+    with workers.shipped(cs, scene.integrator) as shipment, \
+            workers.shipped(compile_scene(_smoke(3.0)), scene.integrator) as other:
+        assert shipment.key != other.key  # one voxel differs
+        loaded, _ = workers.load_shipment(shipment.path)
+        for mine, theirs in [(cs.media.grid_data, loaded.media.grid_data), (cs.vertices, loaded.vertices)]:
+            np.testing.assert_array_equal(theirs, mine)
+            assert theirs.flags.writeable and theirs.flags.aligned and theirs.flags.c_contiguous
+            base = theirs
+            while isinstance(base, np.ndarray):
+                base = base.base
+            assert isinstance(base, memoryview)  # a view of the map, not a copy
+        del loaded, theirs, base
 
 
 def test_a_failing_worker_reports_the_error_and_goes_on():

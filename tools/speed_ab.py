@@ -1,10 +1,11 @@
 """One-core samples per second of the speed benchmark's scenes, for A/B runs of two builds.
 
-    cd TREE && .venv/bin/python tools/speed_ab.py [repeats]
+    cd TREE && .venv/bin/python tools/speed_ab.py [repeats] [--grids]
 
 Prints one line: M samples/s (CPU time of this thread, best of `repeats` after a warm-up
 pass) for the surface Cornell box and the fog box at g 0 and 0.9, 128x128, 16 spp, the
-scenes and settings of `python -m bench speed`. Alternate the two trees' runs (A B A B ...)
+scenes and settings of `python -m bench speed`; with --grids, for the smoke ball and the
+fire ball (grid media) instead. Alternate the two trees' runs (A B A B ...)
 and compare the best of each: this VM's one-core speed swings by 10% from run to run.
 """
 
@@ -16,6 +17,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path.cwd()))
 
+from examples.media_scenes import fire_ball, smoke_ball  # noqa: E402
 from examples.scenes import cornell_box, cornell_fog  # noqa: E402
 from renderer.compile import compile_scene  # noqa: E402
 from renderer.film import Film  # noqa: E402
@@ -37,9 +39,13 @@ def samples_per_second(scene, repeats: int) -> float:
 
 
 def main() -> int:
-    repeats = int(sys.argv[1]) if len(sys.argv) > 1 else 3
-    scenes = {"surface": cornell_box(SIZE, SPP), "fog g0": cornell_fog(SIZE, SPP, 0.0),
-              "fog g0.9": cornell_fog(SIZE, SPP, 0.9)}
+    args = [a for a in sys.argv[1:] if a != "--grids"]
+    repeats = int(args[0]) if args else 3
+    if "--grids" in sys.argv:
+        scenes = {"smoke ball": smoke_ball(SIZE, SPP), "fire ball": fire_ball(SIZE, SPP)}
+    else:
+        scenes = {"surface": cornell_box(SIZE, SPP), "fog g0": cornell_fog(SIZE, SPP, 0.0),
+                  "fog g0.9": cornell_fog(SIZE, SPP, 0.9)}
     print(" | ".join(f"{name} {samples_per_second(s, repeats) / 1e6:.3f}" for name, s in scenes.items()),
           flush=True)
     return 0

@@ -18,6 +18,7 @@ from renderer.media.layout import (
     CELL,
     CELL_DENSITY_BOUND,
     CELL_EMITS,
+    CELL_EXACT,
     GRID_BLACKBODY,
     GRID_NAMES,
     I_HAS_EMISSION,
@@ -38,6 +39,12 @@ MAJ_VOXELS = 4
 MAJ_MAX_CELLS = 64
 # Tentative collisions per majorant cell crossed inside emitting cells (see emission_rate).
 EMISSION_COLLISIONS_PER_CELL = 2.0
+# A cell is crossed by regular tracking (regular.py) when its bound exceeds the least density
+# in it by more than this optical depth along the cell's diagonal: null-collision tracking
+# would spend up to that many tentative collisions per crossing, about what regular tracking
+# costs (two lookups per voxel plane crossed), so no crossing costs more than a few dozen
+# lookups however high one voxel's density is.
+EXACT_DEPTH = 32.0
 
 
 def compile_media(media: list[Medium], use_majorant_grid: bool = True) -> MediaTable:
@@ -49,7 +56,9 @@ def build_media_data(media: list[Medium], use_majorant_grid: bool = True) -> Med
     """Validate `media` and flatten them into MediaData (an empty list gives M = 0).
 
     With use_majorant_grid False every grid medium gets a single majorant cell holding its
-    global maximum density (the paper's single bound), which is correct but slower.
+    global maximum density (the paper's single bound), which is correct but slower; it is
+    then always null-collision tracked (no cell is flagged for regular tracking), as the
+    paper's estimator.
     """
     params = np.zeros((len(media), PARAMS.size), np.float32)
     index = np.zeros((len(media), INDEX.size), np.int64)
@@ -124,9 +133,14 @@ def _fill_medium(params: np.ndarray, index: np.ndarray, med: Medium, store: _Arr
     blackbody_grid = _store_grids(index, med, store, emits_blackbody)
     cells = _majorant_cells(med.density.shape, use_majorant_grid)
     emits = bool(index[I_HAS_EMISSION])
+    diagonal = math.sqrt(sum((n / c) ** 2 for c, n in zip(cells, axis_lengths)))
+    exact_excess = math.inf  # the paper's single bound: null collisions only
+    if use_majorant_grid:  # in density units
+        exact_excess = EXACT_DEPTH / max(_max_sigma_t(med) * diagonal, 1e-300)
     key = (id(med.density), cells, emits, emits_constant, id(med.flame), id(med.temperature),
-           med.blackbody_intensity)
-    offset, dims = store.majorant(key, lambda: _majorant(med, cells, emits, emits_constant, blackbody_grid))
+           med.blackbody_intensity, exact_excess)
+    offset, dims = store.majorant(key, lambda: _majorant(med, cells, emits, emits_constant, blackbody_grid,
+                                                         exact_excess))
     index[INDEX.slice("maj_offset")] = offset
     index[INDEX.slice("maj_dims")] = dims
     params[PARAMS.slice("emission_rate")] = EMISSION_COLLISIONS_PER_CELL * max(
@@ -155,13 +169,24 @@ def _store_grids(index: np.ndarray, med: Medium, store: _ArrayStore, emits_black
 
 
 def _majorant(med: Medium, cells: tuple[int, int, int], emits: bool, emits_constant: bool,
-              blackbody_grid: np.ndarray | None) -> np.ndarray:
-    """(cz, cy, cx, CELL.size) majorant cells of a grid medium."""
+              blackbody_grid: np.ndarray | None, exact_excess: float) -> np.ndarray:
+    """(cz, cy, cx, CELL.size) majorant cells of a grid medium. Cells whose bound exceeds
+    their least density by more than `exact_excess` are flagged for regular tracking, unless
+    they emit (emission is estimated at tentative collisions, which regular tracking has not)."""
     maj = np.zeros((cells[2], cells[1], cells[0], CELL.size), np.float32)
-    maj[..., CELL_DENSITY_BOUND] = _cell_max(np.ascontiguousarray(med.density, np.float32), cells)
+    density = np.ascontiguousarray(med.density, np.float32)
+    bound = _cell_max(density, cells)
+    maj[..., CELL_DENSITY_BOUND] = bound
     if emits:
         maj[..., CELL_EMITS] = _emitting_cells(med, cells, emits_constant, blackbody_grid)
+    excess = bound.astype(np.float64) - _cell_max(density, cells, np.min)
+    maj[..., CELL_EXACT] = (excess > exact_excess) & (maj[..., CELL_EMITS] == 0.0)
     return maj
+
+
+def _max_sigma_t(med: Medium) -> float:
+    """Largest extinction per unit density over the three channels."""
+    return float(np.max(np.add(med.sigma_a, med.sigma_s))) * med.scale
 
 
 def _world_to_unit(med: Medium) -> tuple[np.ndarray, tuple[float, float, float]]:
@@ -205,15 +230,16 @@ def _voxel_range(c: int, cells: int, n: int) -> tuple[int, int]:
     return max(0, lo), min(n - 1, hi)
 
 
-def _cell_max(grid: np.ndarray, cells: tuple[int, int, int]) -> np.ndarray:
-    """(cz, cy, cx) max of `grid` over each cell's voxel range: three separable 1-D max passes."""
+def _cell_max(grid: np.ndarray, cells: tuple[int, int, int], reduce=np.max) -> np.ndarray:
+    """(cz, cy, cx) max (or `reduce`) of `grid` over each cell's voxel range: three
+    separable 1-D passes."""
     out = grid
     for axis, c in zip((2, 1, 0), cells):  # numpy axis 2 is x
         n = out.shape[axis]
         parts = []
         for k in range(c):
             lo, hi = _voxel_range(k, c, n)
-            parts.append(np.take(out, np.arange(lo, hi + 1), axis=axis).max(axis=axis, keepdims=True))
+            parts.append(reduce(np.take(out, np.arange(lo, hi + 1), axis=axis), axis=axis, keepdims=True))
         out = np.concatenate(parts, axis=axis)
     return out
 

@@ -30,8 +30,10 @@ media; a medium id is its index in the scene's list.
                                    (intensity applied), which the kernels interpolate: Cycles'
                                    semantics (see renderer.media.blackbody)
     maj_data  (K, CELL.size) float32  per majorant cell (x fastest): the max density that
-                                   trilinear interpolation can reach inside the cell, and 1.0
-                                   if the cell can emit else 0.0
+                                   trilinear interpolation can reach inside the cell, 1.0
+                                   if the cell can emit else 0.0, and 1.0 if rays cross the
+                                   cell by regular tracking (exact optical depth, regular.py)
+                                   rather than against its bound
     scratch   (MAX_STACK, DDA.size) float64  one walker row per stack entry (majorant.py)
 
 A few wide arrays rather than one per field: every non-inlined call passes each array of
@@ -91,15 +93,17 @@ I_MAJ_OFFSET = INDEX.offset("maj_offset")
 I_MAJ_DIMS = INDEX.offset("maj_dims")
 I_SIZE = INDEX.size
 
-CELL = Layout("majorant cell", [("density_bound", 1), ("emits", 1)])
+CELL = Layout("majorant cell", [("density_bound", 1), ("emits", 1), ("exact", 1)])
 CELL_DENSITY_BOUND = CELL.offset("density_bound")
 CELL_EMITS = CELL.offset("emits")
+CELL_EXACT = CELL.offset("exact")
 
 # A walker row of the majorant-grid DDA (renderer.media.majorant).
 DDA = Layout("dda walker", [
     ("end", 1),  # t where the current piece ends
     ("maj", 1),  # density majorant on the current piece
     ("emits", 1),  # 1.0 if the medium may emit on the current piece
+    ("exact", 1),  # 1.0 if the current piece is crossed by regular tracking (a flagged cell)
     ("state", 1),  # before the box, inside, past it
     ("cell", 3),  # current cell
     ("next", 3),  # t of the next crossing along x, y, z
@@ -112,6 +116,7 @@ DDA = Layout("dda walker", [
 DDA_END = DDA.offset("end")
 DDA_MAJ = DDA.offset("maj")
 DDA_EMITS = DDA.offset("emits")
+DDA_EXACT = DDA.offset("exact")
 DDA_STATE = DDA.offset("state")
 DDA_CELL = DDA.offset("cell")
 DDA_NEXT = DDA.offset("next")

@@ -3,8 +3,9 @@
 Along a ray o + t d a grid medium's majorant is piecewise constant: 0 before its unit box,
 then one value per majorant cell crossed, then 0 again. A walker holds the state of that
 walk in one float64 row (layout.DDA, so a stack of walkers is a small 2-D array) and
-exposes the current piece: it lasts until row[DDA_END], with density bound row[DDA_MAJ]
-and emission flag row[DDA_EMITS]. dda_advance moves to the next piece.
+exposes the current piece: it lasts until row[DDA_END], with density bound row[DDA_MAJ],
+emission flag row[DDA_EMITS] and regular-tracking flag row[DDA_EXACT] (regular.py).
+dda_advance moves to the next piece.
 
 The ray is mapped to the unit cube once (an affine map keeps the ray parameter t), and
 the walk steps cell by cell in integer coordinates, so a ray through a large empty region
@@ -21,11 +22,13 @@ from renderer.media.grid import to_unit_point, to_unit_vector
 from renderer.media.layout import (
     CELL_DENSITY_BOUND,
     CELL_EMITS,
+    CELL_EXACT,
     DDA_CELL,
     DDA_DT,
     DDA_EMITS,
     DDA_END,
     DDA_ENTER,
+    DDA_EXACT,
     DDA_EXIT,
     DDA_MAJ,
     DDA_MEDIUM,
@@ -40,10 +43,11 @@ BEFORE, INSIDE, PAST = 0.0, 1.0, 2.0
 
 
 @inline_kernel
-def _set_piece(row, end, maj, emits):
+def _set_piece(row, end, maj, emits, exact):
     row[DDA_END] = end
     row[DDA_MAJ] = maj
     row[DDA_EMITS] = emits
+    row[DDA_EXACT] = exact
 
 
 @inline_kernel
@@ -58,7 +62,7 @@ def _load_cell(mt, row):
     cell = maj_offset(mt, m) + (k * cy + j) * cx + i
     end = min(row[DDA_NEXT], row[DDA_NEXT + 1], row[DDA_NEXT + 2], row[DDA_EXIT])
     _set_piece(row, end, np.float64(mt.maj_data[cell, CELL_DENSITY_BOUND]),
-               np.float64(mt.maj_data[cell, CELL_EMITS]))
+               np.float64(mt.maj_data[cell, CELL_EMITS]), np.float64(mt.maj_data[cell, CELL_EXACT]))
 
 
 @inline_kernel
@@ -121,7 +125,7 @@ def dda_init(mt, m, o, d, t_start, row):
     t_enter = max(t_enter, t_start)
     if not t_enter < t_exit:
         row[DDA_STATE] = PAST
-        _set_piece(row, math.inf, 0.0, 0.0)
+        _set_piece(row, math.inf, 0.0, 0.0, 0.0)
         return
     row[DDA_ENTER] = t_enter
     row[DDA_EXIT] = t_exit
@@ -145,7 +149,7 @@ def dda_init(mt, m, o, d, t_start, row):
             row[DDA_STEP + a] = 0.0
     if t_enter > t_start:
         row[DDA_STATE] = BEFORE
-        _set_piece(row, t_enter, 0.0, 0.0)
+        _set_piece(row, t_enter, 0.0, 0.0, 0.0)
     else:
         row[DDA_STATE] = INSIDE
         _load_cell(mt, row)
@@ -162,7 +166,7 @@ def dda_advance(mt, row):
         return
     if row[DDA_STATE] == PAST or row[DDA_END] >= row[DDA_EXIT]:
         row[DDA_STATE] = PAST
-        _set_piece(row, math.inf, 0.0, 0.0)
+        _set_piece(row, math.inf, 0.0, 0.0, 0.0)
         return
     # Step across the nearest crossing.
     a = _next_axis(row)
@@ -170,7 +174,7 @@ def dda_advance(mt, row):
     c = row[DDA_CELL + a] + row[DDA_STEP + a]
     if c < 0.0 or c >= maj_dim(mt, m, a):
         row[DDA_STATE] = PAST
-        _set_piece(row, math.inf, 0.0, 0.0)
+        _set_piece(row, math.inf, 0.0, 0.0, 0.0)
         return
     row[DDA_CELL + a] = c
     row[DDA_NEXT + a] += row[DDA_DT + a]

@@ -26,6 +26,13 @@ Ratio tracking (transmittance): technique c places points as a Poisson process o
 mu_c; channel k's estimate is f_k / sum_c p_c pdf_c with f_k = prod sigma_n,k(x_i) exp(-int
 mu_k) and pdf_c = prod mu_c exp(-int mu_c). Russian roulette once every channel's running
 estimate is below RR_THRESHOLD keeps it unbiased and cheap in dense media.
+
+Regular tracking (regular.py) crosses the majorant cells compile.py flags (a bound far
+above the density somewhere in the cell), when the piece has one grid entry and samples no
+emission: technique c then samples the exact free-flight distribution of channel c, its
+pdf is sigma_t,c(x) exp(-tau_c) (collision) or exp(-tau_c) (passing) with no null events,
+so q_c gains exp(-tau_c) and the estimates above keep their form. Ratio tracking multiplies
+f_k by the exact transmittance exp(-tau_k) of the piece, which all techniques share.
 """
 
 import math
@@ -36,10 +43,11 @@ from renderer.kernels import fastmath as fm
 from renderer.kernels import inline_kernel, kernel
 from renderer.kernels.rng import uniform
 from renderer.media.emission import stack_emission
-from renderer.media.grid import medium_density
+from renderer.media.grid import medium_density, to_unit_point, to_unit_vector
 from renderer.media.homogeneous import optical_depth
-from renderer.media.layout import DDA_EMITS, DDA_END, DDA_MAJ, DDA_MEDIUM
+from renderer.media.layout import DDA_EMITS, DDA_END, DDA_EXACT, DDA_MAJ, DDA_MEDIUM
 from renderer.media.majorant import dda_advance, dda_init
+from renderer.media.regular import optical_depths, sample_flight
 from renderer.media.spectral import THIRD, pick_channel
 from renderer.media.stack import EMPTY, MAX_STACK, stack_has_emission
 from renderer.media.table import emission_rate, emits, is_grid, sigma_a, sigma_s, sigma_t
@@ -98,13 +106,18 @@ def _start_walk(mt, stack, o, d, t0, rows):
 
 @inline_kernel
 def _piece(mt, rows, n, hom_sigma_t, hom_rate):
-    """Majorant (per channel) of the current piece and where the piece ends.
+    """Majorant (per channel) of the current piece, where the piece ends, and the walker
+    whose grid is crossed by regular tracking on it (-1: null-collision tracking).
 
     hom_rate < 0 means emission is not sampled; otherwise it is the homogeneous entries'
-    emission rate and the grid entries' rates apply in their emitting cells."""
+    emission rate and the grid entries' rates apply in their emitting cells. Regular
+    tracking needs one grid entry with density on the piece, in a flagged cell, and no
+    emission sampled there."""
     mu0, mu1, mu2 = hom_sigma_t
     end = math.inf
     lam = hom_rate
+    dense = 0
+    exact = -1
     for j in range(n):
         m = int(rows[j, DDA_MEDIUM])
         rho = rows[j, DDA_MAJ]
@@ -113,6 +126,9 @@ def _piece(mt, rows, n, hom_sigma_t, hom_rate):
             mu0 += rho * st[0]
             mu1 += rho * st[1]
             mu2 += rho * st[2]
+            dense += 1
+            if rows[j, DDA_EXACT] > 0.0:
+                exact = j
         if hom_rate >= 0.0 and rows[j, DDA_EMITS] > 0.0:
             lam = max(lam, emission_rate(mt, m))
         end = min(end, rows[j, DDA_END])
@@ -120,7 +136,10 @@ def _piece(mt, rows, n, hom_sigma_t, hom_rate):
         mu0 = max(mu0, lam)
         mu1 = max(mu1, lam)
         mu2 = max(mu2, lam)
-    return (mu0, mu1, mu2), end
+        exact = -1
+    if dense != 1:
+        exact = -1
+    return (mu0, mu1, mu2), end, exact
 
 
 @inline_kernel
@@ -151,6 +170,38 @@ def _scaled(q, s):
     return (q[0] / s, q[1] / s, q[2] / s)
 
 
+@inline_kernel
+def _attenuated(q, tau, p):
+    """q_k exp(-tau_k), renormalised (the common factor exp(-min tau) is dropped first, so a
+    channel that sampled the flight, tau_c <= ~37, cannot underflow)."""
+    low = min(tau[0], tau[1], tau[2])
+    q = (q[0] * math.exp(low - tau[0]), q[1] * math.exp(low - tau[1]), q[2] * math.exp(low - tau[2]))
+    return _scaled(q, _mix(p, q))
+
+
+@inline_kernel
+def _unit_ray(mt, rows, j, o, d):
+    """(medium, uo, ud, sigma_t) of walker j's grid: the ray in its unit cube."""
+    m = int(rows[j, DDA_MEDIUM])
+    return m, to_unit_point(mt, m, o), to_unit_vector(mt, m, d), sigma_t(mt, m)
+
+
+@inline_kernel
+def _roulette(f, key, dim):
+    """Russian roulette on a ratio-tracking estimate f: (f, alive, dim)."""
+    m = max(f[0], f[1], f[2])
+    if m >= RR_THRESHOLD:
+        return f, True, dim
+    if m <= 0.0:
+        return f, False, dim
+    survive = m / RR_THRESHOLD
+    u = uniform(key, dim)
+    dim += 1
+    if u >= survive:
+        return f, False, dim
+    return _scaled(f, survive), True, dim
+
+
 @kernel
 def delta_track(mt, stack, o, d, t0, t1, p, key, dim, with_emission, rows):
     """Delta tracking with spectral MIS over [t0, t1): (t, collided, weight3, Le3, dim).
@@ -172,8 +223,24 @@ def delta_track(mt, stack, o, d, t0, t1, p, key, dim, with_emission, rows):
     t = t0
     collisions = 0
     while t < t1:
-        mu, end = _piece(mt, rows, n, hom_sigma_t, rate)
+        mu, end, ex = _piece(mt, rows, n, hom_sigma_t, rate)
         end = min(end, t1)
+        if ex >= 0:  # regular tracking across the piece
+            m, uo, ud, st_grid = _unit_ray(mt, rows, ex, o, d)
+            depth = -fm.log1p(-uniform(key, dim))
+            dim += 1
+            t, hit, tau = sample_flight(mt, m, uo, ud, t, end, depth, c, st_grid, hom_sigma_t)
+            q = _attenuated(q, tau, p)
+            if hit:
+                x = (o[0] + d[0] * t, o[1] + d[1] * t, o[2] + d[2] * t)
+                sa, ss = _sigma_at(mt, stack, x)
+                st = (sa[0] + ss[0], sa[1] + ss[1], sa[2] + ss[2])
+                denom = p[0] * q[0] * st[0] + p[1] * q[1] * st[1] + p[2] * q[2] * st[2]
+                if denom > 0.0:  # (0 only for a zero-length flight onto zero density: walk on)
+                    w = (q[0] * ss[0] / denom, q[1] * ss[1] / denom, q[2] * ss[2] / denom)
+                    return t, True, w, (le0, le1, le2), dim
+            _advance_walk(mt, rows, n, t)
+            continue
         while True:
             dt = math.inf
             if mu[c] > 0.0:
@@ -224,8 +291,18 @@ def ratio_track(mt, stack, o, d, t0, t1, p, key, dim, rows):
     t = t0
     collisions = 0
     while t < t1:
-        mu, end = _piece(mt, rows, n, hom_sigma_t, -1.0)
+        mu, end, ex = _piece(mt, rows, n, hom_sigma_t, -1.0)
         end = min(end, t1)
+        if ex >= 0:  # exact transmittance of the piece: every technique's pdf is 1 on it
+            m, uo, ud, st_grid = _unit_ray(mt, rows, ex, o, d)
+            tau = optical_depths(mt, m, uo, ud, t, end, st_grid, hom_sigma_t)
+            f = (f[0] * math.exp(-tau[0]), f[1] * math.exp(-tau[1]), f[2] * math.exp(-tau[2]))
+            f, alive, dim = _roulette(f, key, dim)
+            if not alive:
+                return (0.0, 0.0, 0.0), dim
+            t = end
+            _advance_walk(mt, rows, n, t)
+            continue
         while True:
             dt = math.inf
             if mu[c] > 0.0:
@@ -255,16 +332,9 @@ def ratio_track(mt, stack, o, d, t0, t1, p, key, dim, rows):
             f = _scaled(f, s)
             q = _scaled(q, s)
             # Russian roulette on the running estimate f_k / sum p q (= f_k now).
-            m = max(f[0], f[1], f[2])
-            if m < RR_THRESHOLD:
-                if m <= 0.0:
-                    return (0.0, 0.0, 0.0), dim
-                survive = m / RR_THRESHOLD
-                u = uniform(key, dim)
-                dim += 1
-                if u >= survive:
-                    return (0.0, 0.0, 0.0), dim
-                f = _scaled(f, survive)
+            f, alive, dim = _roulette(f, key, dim)
+            if not alive:
+                return (0.0, 0.0, 0.0), dim
         _advance_walk(mt, rows, n, t)
     return f, dim
 
