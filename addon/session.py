@@ -29,6 +29,7 @@ from .passes import (
     NOISY_IMAGE,
     denoising_enabled,
     needs_aovs,
+    needs_light_aovs,
     requested_passes,
 )
 
@@ -182,6 +183,7 @@ class RenderSession:
                                     on_warnings=self._report_warnings)
         # The passes cost nothing unless asked for: only then does the renderer write them.
         exported.scene.film.aovs = needs_aovs(self.passes, self.denoise)
+        exported.scene.film.light_aovs = needs_light_aovs(self.passes)
         self.camera = exported.scene.camera
         self._check_memory(exported.scene)
         render_progressive = self._renderer

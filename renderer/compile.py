@@ -99,6 +99,7 @@ class CompiledScene:
     transparent: bool = False  # Film > Transparent: the world seen directly gives alpha 0
     aovs: bool = False  # the surface stage writes the passes' columns (renderer.passes)
     mist: tuple[float, float, float] = (5.0, 1.0 / 25.0, 2.0)  # start, 1 / depth, falloff exponent
+    light_aovs: bool = False  # and the light and colour passes' (Emission, Diffuse/Glossy Color)
 
 
 def _merge_meshes(scene: Scene, material_index: dict[str, int], medium_index: dict[str, int]):
@@ -197,7 +198,8 @@ def compile_scene(scene: Scene) -> CompiledScene:
     _, _, width, height = scene.film.window()
     return CompiledScene(vertices, indices, geometry, materials, lights, media, _camera(scene),
                          width, height, world_medium, has_media, needs_walk, radius,
-                         bool(scene.film.transparent), bool(scene.film.aovs), _mist(scene.film))
+                         bool(scene.film.transparent), bool(scene.film.aovs), _mist(scene.film),
+                         bool(scene.film.light_aovs))
 
 
 def _mist(film) -> tuple[float, float, float]:

@@ -21,15 +21,16 @@ GLASS_CENTER, GLASS_RADIUS = np.array([0.3, -0.5, 0.45]), 0.45
 WALL_Y, WALL_TOP = 2.0, 1.5
 
 
-def pixel_rays(size: tuple[int, int], n: int) -> np.ndarray:
-    """(H, W, n*n, 3) world directions of an n x n grid of points in every pixel."""
+def pixel_rays(size: tuple[int, int], n: int, tilt: float = TILT) -> np.ndarray:
+    """(H, W, n*n, 3) world directions of an n x n grid of points in every pixel, for the
+    camera turned `tilt` radians about X."""
     width, height = size
     u = (np.arange(n) + 0.5) / n
     py, px, vy, vx = np.meshgrid(np.arange(height), np.arange(width), u, u, indexing="ij")
     x = (px + vx) / width - 0.5
     y = 0.5 - (py + vy) / height
     local = np.stack([x * SENSOR / LENS, y * SENSOR * height / width / LENS, -np.ones_like(x)], -1)
-    c, s = math.cos(TILT), math.sin(TILT)
+    c, s = math.cos(tilt), math.sin(tilt)
     rotation = np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
     directions = local @ rotation.T
     directions /= np.linalg.norm(directions, axis=-1, keepdims=True)
@@ -45,10 +46,15 @@ def fog_length(directions: np.ndarray) -> np.ndarray:
     return np.clip(leave - np.maximum(enter, 0.0), 0.0, None)
 
 
-def hits_glass(directions: np.ndarray) -> np.ndarray:
-    oc = CAMERA - GLASS_CENTER
+def hits_sphere(directions: np.ndarray, center: np.ndarray, radius: float,
+                camera: np.ndarray = CAMERA) -> np.ndarray:
+    oc = camera - center
     b = directions @ oc
-    return b * b - (oc @ oc - GLASS_RADIUS**2) > 0.0
+    return b * b - (oc @ oc - radius**2) > 0.0
+
+
+def hits_glass(directions: np.ndarray) -> np.ndarray:
+    return hits_sphere(directions, GLASS_CENTER, GLASS_RADIUS)
 
 
 def dilate(mask: np.ndarray) -> np.ndarray:
