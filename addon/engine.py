@@ -15,7 +15,7 @@ from .session import RenderSession
 class HazeRenderEngine(bpy.types.RenderEngine):
     bl_idname = "HAZE"
     bl_label = "Haze"
-    bl_use_preview = False  # material previews are rendered by EEVEE
+    bl_use_preview = True  # the Material tab's preview and material icons (session.preview_settings)
     bl_use_shading_nodes_custom = False  # use Blender's standard shader nodes, like Cycles
     bl_use_eevee_viewport = True  # Material Preview in the viewport uses EEVEE
 

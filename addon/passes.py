@@ -27,6 +27,10 @@ NORMAL = PassSpec("Normal", "XYZ", "VECTOR")
 DENOISING_NORMAL = PassSpec("Denoising Normal", "XYZ", "VECTOR")
 DENOISING_ALBEDO = PassSpec("Denoising Albedo", "RGB", "COLOR")
 NOISY_IMAGE = PassSpec("Noisy Image", "RGBA", "COLOR")
+DIFFUSE_COLOR = PassSpec("Diffuse Color", "RGB", "COLOR")
+GLOSSY_COLOR = PassSpec("Glossy Color", "RGB", "COLOR")
+EMISSION = PassSpec("Emission", "RGB", "COLOR")
+LIGHT_PASSES = (DIFFUSE_COLOR, GLOSSY_COLOR, EMISSION)  # renderer film.light_aovs
 
 
 def store_denoising_data(view_layer) -> bool:
@@ -51,6 +55,12 @@ def requested_passes(scene, view_layer) -> list[PassSpec]:
         passes.append(NOISY_IMAGE)
     if store_denoising_data(view_layer):
         passes += [DENOISING_NORMAL, DENOISING_ALBEDO]
+    if getattr(view_layer, "use_pass_diffuse_color", False):
+        passes.append(DIFFUSE_COLOR)
+    if getattr(view_layer, "use_pass_glossy_color", False):
+        passes.append(GLOSSY_COLOR)
+    if getattr(view_layer, "use_pass_emit", False):
+        passes.append(EMISSION)
     return passes
 
 
@@ -62,3 +72,8 @@ def denoising_enabled(scene) -> bool:
 def needs_aovs(passes: list[PassSpec], denoise: bool) -> bool:
     """True when the renderer must write the AOV columns (any pass beyond the image)."""
     return denoise or any(p not in (COMBINED, NOISY_IMAGE) for p in passes)
+
+
+def needs_light_aovs(passes: list[PassSpec]) -> bool:
+    """True when the renderer must also write the light and colour passes' columns."""
+    return any(p in LIGHT_PASSES for p in passes)

@@ -29,6 +29,7 @@ from .passes import (
     NOISY_IMAGE,
     denoising_enabled,
     needs_aovs,
+    needs_light_aovs,
     requested_passes,
 )
 
@@ -36,6 +37,11 @@ PUSH_INTERVAL = 1.0  # seconds between image updates shown to the user
 MAX_DISPLAY_SHARE = 0.02  # pushes may take at most this share of the render time
 MAX_REPORTED_WARNINGS = 20  # more go to the console only, so the UI is not flooded
 COMPILING_TEXT = "Haze | Compiling kernels (first run only)…"
+# Material previews (the Material tab's sphere, the material icons): small and redrawn on
+# every edit, so a few samples and bounces, Combined only, no warnings. No time limit: one
+# would leave the first previews black while the kernels compile.
+PREVIEW_SAMPLES = 16
+PREVIEW_MAX_BOUNCES = 4
 
 _active_renders = 0  # RenderSessions running in this process (the cache must not be cleared then)
 
@@ -121,6 +127,13 @@ def passes_without_main(frames: Iterator) -> Iterator:
         yield progress
 
 
+def preview_settings(integrator) -> None:
+    """A material preview's settings: at most PREVIEW_SAMPLES samples and PREVIEW_MAX_BOUNCES
+    bounces, whatever the scene asks for."""
+    integrator.spp = min(int(integrator.spp), PREVIEW_SAMPLES)
+    integrator.max_bounces = min(int(integrator.max_bounces), PREVIEW_MAX_BOUNCES)
+
+
 class RenderSession:
     """One F12 render: export, progressive rendering, display, and cleanup."""
 
@@ -140,8 +153,10 @@ class RenderSession:
         self.buffer = ResultBuffer(self.window[2], self.window[3])
         # The passes Blender's result holds for this view layer (update_render_passes), and
         # whether the final image is denoised.
-        self.passes = requested_passes(depsgraph.scene, getattr(depsgraph, "view_layer", None))
-        self.denoise = denoising_enabled(depsgraph.scene)
+        self.preview = bool(getattr(engine, "is_preview", False))
+        view_layer = getattr(depsgraph, "view_layer", None)
+        self.passes = [COMBINED] if self.preview else requested_passes(depsgraph.scene, view_layer)
+        self.denoise = denoising_enabled(depsgraph.scene) and not self.preview
         self.camera = None  # the exported camera (Depth and Denoising Normal are relative to it)
         self.latest = None  # last Progress received
         self.cancelled = False
@@ -184,8 +199,11 @@ class RenderSession:
         exported = export_validated(self.depsgraph, (self.width, self.height), exporter=self._exporter,
                                     on_start=lambda: self.engine.update_stats("", "Haze | Exporting scene"),
                                     on_warnings=self._report_warnings)
+        if self.preview:
+            preview_settings(exported.scene.integrator)
         # The passes cost nothing unless asked for: only then does the renderer write them.
         exported.scene.film.aovs = needs_aovs(self.passes, self.denoise)
+        exported.scene.film.light_aovs = needs_light_aovs(self.passes)
         self.camera = exported.scene.camera
         self._check_memory(exported.scene)
         render_progressive = self._renderer
@@ -232,6 +250,8 @@ class RenderSession:
         return worker_count(self.settings)
 
     def _report_warnings(self, warnings: list[str]) -> None:
+        if self.preview:
+            return  # a preview redraws on every edit: the render itself reports them
         for text in warnings[:MAX_REPORTED_WARNINGS]:
             self.engine.report({"WARNING"}, text)
         if len(warnings) > MAX_REPORTED_WARNINGS:

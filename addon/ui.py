@@ -135,6 +135,10 @@ class HAZE_VIEWLAYER_PT_passes(HazeRenderPanel, bpy.types.Panel):
         cycles = getattr(view_layer, "cycles", None)
         if cycles is not None:
             column.prop(cycles, "denoising_store_passes", text="Denoising Data")
+        column = layout.column(heading="Light", align=True)
+        column.prop(view_layer, "use_pass_diffuse_color", text="Diffuse Color")
+        column.prop(view_layer, "use_pass_glossy_color", text="Glossy Color")
+        column.prop(view_layer, "use_pass_emit", text="Emission")
 
 
 CLASSES = (

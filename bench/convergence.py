@@ -9,6 +9,10 @@ For each benchmark scene (128x128, both cores):
 * one progressive Haze render per estimator setting, its error measured after every pass,
   so a single run gives the whole curve of error against wall time (the time counts from
   the call to render_progressive: scene compilation and worker start-up included);
+* beside the first setting, the same render denoised (Open Image Denoise guided by the
+  Denoising Albedo and Normal passes, renderer.denoise) after every pass: its own render,
+  since the passes cost time, and each point's time includes its denoising (--no-denoised
+  leaves it out);
 * Cycles on the same scene, rebuilt in bpy by tools/cycles_reference.py (a subprocess: the
   renderer never imports bpy), at 1, 2, 4, ... samples, each render timed, until one takes
   the largest budget; plus Cycles' own converged reference (mean of four seeds, cached).
@@ -67,11 +71,14 @@ HUGE_SPP = 10**8  # "until the time budget runs out"
 
 
 def haze_curve(scene: Scene, label: str, overrides: dict, reference: Reference, max_seconds: float,
-               workers: int) -> Curve:
-    """One progressive render: the error of the image after every pass against its elapsed time."""
+               workers: int, denoised: bool = False) -> Curve:
+    """One progressive render: the error of the image after every pass against its elapsed
+    time; with `denoised`, of the image denoised after every pass, at elapsed time plus the
+    denoising's own."""
     from renderer.render import render_progressive
 
     scene = copy.deepcopy(scene)
+    scene.film.aovs = denoised  # the denoiser's albedo and normal passes
     for key, value in overrides.items():
         setattr(scene.integrator, key, value)
     scene.integrator.spp, scene.integrator.seed = HUGE_SPP, MEASURE_SEED
@@ -84,14 +91,35 @@ def haze_curve(scene: Scene, label: str, overrides: dict, reference: Reference, 
     try:
         for frame in frames:
             image = frame.film.mean().reshape(shape)
-            curve.add(frame.elapsed, frame.spp, reference.relmse(image), reference.rmse(image),
-                      frame.error_estimate)
+            seconds, estimate = frame.elapsed, frame.error_estimate
+            if denoised:
+                started = time.perf_counter()
+                image = denoised_image(frame.film, scene)
+                seconds += time.perf_counter() - started
+                estimate = math.nan  # Haze's estimate is the raw image's
+            curve.add(seconds, frame.spp, reference.relmse(image), reference.rmse(image), estimate)
             if curve.relmse[-1] < floor:
                 break
     finally:
         frames.close()
     curve.fit_startup()
     return curve
+
+
+def denoised_image(film: Film, scene: Scene) -> np.ndarray:
+    """(H, W, 3) float64: the film's image denoised with its albedo and normal passes."""
+    from renderer.denoise import denoise
+    from renderer.passes import film_passes
+
+    passes = film_passes(film, scene.camera, ("Denoising Albedo", "Denoising Normal"))
+    image = film.mean().reshape(film.height, film.width, 3)
+    return denoise(image, passes["Denoising Albedo"], passes["Denoising Normal"]).astype(np.float64)
+
+
+def denoising_available() -> bool:
+    from renderer.denoise import available
+
+    return available()
 
 
 # ------------------------------------------------------------------------------ cache
@@ -240,6 +268,7 @@ class Options:
     reference_time: float
     out: Path | None
     settings: list[str] | None  # estimator settings to run (None: every one the scene has)
+    denoised: bool = True  # also the first setting's render denoised after every pass
 
 
 def run_scene(bench: BenchScene, options: Options) -> SceneResult:
@@ -256,6 +285,10 @@ def run_scene(bench: BenchScene, options: Options) -> SceneResult:
     for label, overrides in chosen.items():
         curves.append(haze_curve(scene, label, overrides, haze_ref, max_seconds, options.workers))
         print(f"  Haze {label}: {_curve_line(curves[-1])}", flush=True)
+        if options.denoised and len(curves) == 1 and denoising_available():
+            curves.append(haze_curve(scene, f"{label}, denoised", overrides, haze_ref, max_seconds,
+                                     options.workers, denoised=True))
+            print(f"  Haze {label}, denoised: {_curve_line(curves[-1])}", flush=True)
     cycles = cycles_vs_haze = cycles_ref = None
     if options.cycles:
         cycles, cycles_vs_haze, cycles_ref = cycles_curves(folder, max_seconds, haze_ref, options.workers,
@@ -280,6 +313,7 @@ def parse_arguments(argv: list[str] | None) -> tuple[Options, bool]:
     p.add_argument("--size", type=int, default=None)
     p.add_argument("--workers", type=int, default=2, help="Haze processes and Cycles threads")
     p.add_argument("--no-cycles", action="store_true")
+    p.add_argument("--no-denoised", action="store_true", help="leave out the denoised curve")
     p.add_argument("--settings", nargs="+", default=None, choices=list(SETTING_NOTES),
                    help="estimator settings to run (default: all those the scene lists)")
     p.add_argument("--reference-target", type=float, default=None, help="relMSE of the references")
@@ -298,6 +332,7 @@ def parse_arguments(argv: list[str] | None) -> tuple[Options, bool]:
         reference_target=a.reference_target or (1e-3 if quick else 1e-4),
         reference_time=a.reference_time or (15.0 if quick else 1200.0),
         out=a.out if a.out is not None else (None if quick else DOCS),
+        denoised=not a.no_denoised,
     )
     return options, quick
 

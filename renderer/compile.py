@@ -105,6 +105,7 @@ class CompiledScene:
     # The environment map's tables (renderer.lights.environment_map); None for a constant
     # world, which then compiles and runs no map code.
     environment: tuple | None = None
+    light_aovs: bool = False  # and the light and colour passes' (Emission, Diffuse/Glossy Color)
 
 
 def _merge_meshes(scene: Scene, material_index: dict[str, int], medium_index: dict[str, int]):
@@ -205,7 +206,7 @@ def compile_scene(scene: Scene) -> CompiledScene:
                          width, height, world_medium, has_media, needs_walk, radius,
                          bool(scene.film.transparent), bool(scene.film.aovs), _mist(scene.film),
                          build_shading_tables(scene.materials, scene.meshes, scene.images, indices.shape[0]),
-                         build_environment(scene.environment))
+                         build_environment(scene.environment), bool(scene.film.light_aovs))
 
 
 def _mist(film) -> tuple[float, float, float]:

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .integrator.paths import AOV_COUNT, AOV_FIRST
+from .integrator.paths import AOV_COUNT, AOV_FIRST, LIGHT_AOV_FIRST
 from .kernels import kernel
 
 # relMSE = mean((x - ref)^2 / (ref^2 + REL_EPS)); the offset keeps black pixels from dominating.
@@ -31,9 +31,11 @@ class Film:
         # passes requested adds to this film (ensure_aov): a film without passes holds none.
         self.aov: np.ndarray | None = None
 
-    def ensure_aov(self) -> np.ndarray:
+    def ensure_aov(self, columns: int = AOV_COUNT) -> np.ndarray:
+        """The passes' sums: AOV_COUNT columns, + LIGHT_AOV_COUNT with the light passes."""
         if self.aov is None:
-            self.aov = np.zeros((self.width * self.height, AOV_COUNT), np.float64)
+            self.aov = np.zeros((self.width * self.height, columns), np.float64)
+        assert self.aov.shape[1] == columns, "films with different passes cannot be added"
         return self.aov
 
     def add(self, other: Film) -> None:
@@ -43,7 +45,7 @@ class Film:
         self.alpha += other.alpha
         self.nonfinite += other.nonfinite
         if other.aov is not None:
-            self.ensure_aov()[:] += other.aov
+            self.ensure_aov(other.aov.shape[1])[:] += other.aov
 
     @property
     def spp(self) -> int:
@@ -97,7 +99,8 @@ def splat(n, L, pixel_of_pid, film_sum, film_sq, film_n, film_nonfinite, film_al
     transparency L[pid, 3] (see integrator.paths.ALPHA). A non-finite path value (a bug, never
     expected) is counted and added as 0, so one bad path cannot ruin an image but cannot
     pass unnoticed either. film_aov (P, AOV_COUNT) gets the passes' columns L[pid, AOV_FIRST:],
-    or is empty (0 rows) when no pass was requested."""
+    (P, AOV_COUNT + LIGHT_AOV_COUNT) also the light passes' L[pid, LIGHT_AOV_FIRST:], or is
+    empty (0 rows) when no pass was requested."""
     aovs = film_aov.shape[0] > 0
     for i in range(n):
         px = pixel_of_pid[i]
@@ -113,6 +116,8 @@ def splat(n, L, pixel_of_pid, film_sum, film_sq, film_n, film_nonfinite, film_al
         if aovs:
             for c in range(AOV_COUNT):
                 film_aov[px, c] += L[i, AOV_FIRST + c]
+            for c in range(film_aov.shape[1] - AOV_COUNT):
+                film_aov[px, AOV_COUNT + c] += L[i, LIGHT_AOV_FIRST + c]
 
 
 def box_mean(image: np.ndarray, radius: int) -> np.ndarray:

@@ -19,13 +19,16 @@ WORKER_BYTES_PER_PIXEL = 2 * FILM_BYTES_PER_PIXEL
 # The render passes' sums when the film has them (film.aovs): integrator.paths.AOV_COUNT
 # float64 columns (a constant here: importing the integrator would load numba).
 AOV_BYTES_PER_PIXEL = 15 * 8
+LIGHT_AOV_BYTES_PER_PIXEL = 9 * 8  # and integrator.paths.LIGHT_AOV_COUNT with film.light_aovs
 
 
 def render_memory_bytes(film: Film, workers: int) -> int:
     """An estimate of the memory a render of `film` with `workers` processes needs."""
     pixels = film.width * film.height
     extra_workers = workers if workers > 1 else 0  # one worker renders in the calling process
-    aovs = AOV_BYTES_PER_PIXEL if getattr(film, "aovs", False) else 0
+    light = getattr(film, "light_aovs", False)
+    aovs = AOV_BYTES_PER_PIXEL if getattr(film, "aovs", False) or light else 0
+    aovs += LIGHT_AOV_BYTES_PER_PIXEL if light else 0
     worker_bytes = WORKER_BYTES_PER_PIXEL + 2 * aovs  # as WORKER_BYTES_PER_PIXEL: two films in flight
     return pixels * (FILM_BYTES_PER_PIXEL + aovs + PROGRESS_BYTES_PER_PIXEL + extra_workers * worker_bytes)
 

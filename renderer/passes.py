@@ -11,6 +11,9 @@ and values (kernel/film/read.h):
                     (x right, y up, z forward: Blender's camera space with z flipped);
                     (0, 0, -1) for a scatter in a medium
   Denoising Albedo  mean albedo of the first diffuse-like hit x the specular albedos passed
+  Emission          mean emission the camera path found before scattering (film.light_aovs)
+  Diffuse Color     mean throughput x diffuse albedo over the hits before scattering
+  Glossy Color      the same for the glossy lobes' albedo
 
 Every image is (H, W, C) float32, row 0 at the top, like Film.image.
 """
@@ -21,26 +24,35 @@ import numpy as np
 
 from .film import Film
 from .integrator.paths import (
+    AOV_COUNT,
     AOV_DALBEDO,
+    AOV_DIFFUSE_COLOR,
     AOV_DNORMAL,
     AOV_DNORMAL_VOLUME,
+    AOV_EMISSION,
     AOV_FIRST,
+    AOV_GLOSSY_COLOR,
     AOV_HIT0,
     AOV_MIST,
     AOV_NORMAL,
     AOV_POSITION,
+    LIGHT_AOV_FIRST,
 )
 from .scene import Camera
 
 DATA_PASSES = ("Depth", "Position", "Normal", "Mist")
 DENOISING_PASSES = ("Denoising Normal", "Denoising Albedo")
+LIGHT_PASSES = ("Emission", "Diffuse Color", "Glossy Color")  # need film.light_aovs
+LIGHT_COLUMNS = {"Emission": AOV_EMISSION, "Diffuse Color": AOV_DIFFUSE_COLOR,
+                 "Glossy Color": AOV_GLOSSY_COLOR}
 MISS_DEPTH = 1e10  # Cycles' Depth where the camera saw the world
 PANORAMIC = ("equirectangular", "fisheye_equidistant", "fisheye_equisolid", "mirrorball")
 
 
 def _column(film: Film, first: int, count: int) -> np.ndarray:
     assert film.aov is not None, "the film holds no passes: render with scene.film.aovs on"
-    c = first - AOV_FIRST
+    c = first - AOV_FIRST if first < LIGHT_AOV_FIRST else AOV_COUNT + first - LIGHT_AOV_FIRST
+    assert c + count <= film.aov.shape[1], "the film holds no light passes: render with film.light_aovs on"
     return film.aov[:, c:c + count]
 
 
@@ -92,6 +104,8 @@ def film_passes(film: Film, camera: Camera, names: tuple[str, ...] = DATA_PASSES
             values = camera_space(camera, _mean(film, AOV_DNORMAL, 3)) + volume
         elif name == "Denoising Albedo":
             values = _mean(film, AOV_DALBEDO, 3)
+        elif name in LIGHT_COLUMNS:
+            values = _mean(film, LIGHT_COLUMNS[name], 3)
         else:
             raise KeyError(f"Haze renders no pass named {name!r}")
         out[name] = _image(film, values)

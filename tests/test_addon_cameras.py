@@ -220,6 +220,22 @@ def test_camera_agrees_with_cycles(renders, case):
     assert_agree(compare_images(haze[..., :3], cycles[..., :3]))
 
 
+# The row of the alpha image where the wall's top edge (z 1.5 at y 2) crosses the sky, and
+# the exact share of that row's pixels the wall covers (the camera's rays through the row,
+# 1e5 of them, as tests/pass_stage.py casts them).
+WALL_EDGE_ROW = 12
+
+
+def wall_edge_coverage(height: int = 48) -> float:
+    from pass_stage import CAMERA, LENS, SENSOR, TILT
+
+    y = 0.5 - (WALL_EDGE_ROW + (np.arange(100000) + 0.5) / 100000) / height
+    c, s = np.cos(TILT), np.sin(TILT)
+    dy, dz = y * SENSOR / LENS * c + s, y * SENSOR / LENS * s - c  # rotated about X (square image)
+    z = CAMERA[2] + (2.0 - CAMERA[1]) / dy * dz
+    return float(((z < 1.5) & (z > 0.0)).mean())
+
+
 def test_transparent_film_agrees_with_cycles(renders):
     haze, cycles = stack(renders["alpha"]["haze"]), stack(renders["alpha"]["cycles"])
     # The sky is left out of the colour and gives alpha 0; objects give 1, the smoke between.
@@ -227,7 +243,29 @@ def test_transparent_film_agrees_with_cycles(renders):
     assert (alpha < 0.01).mean() > 0.1 and (alpha > 0.99).mean() > 0.5
     assert ((alpha > 0.05) & (alpha < 0.95)).sum() >= 16, "the smoke gives no fractional alpha"
     assert_agree(compare_images(haze[..., :3], cycles[..., :3]))
-    assert_agree(compare_images(np.repeat(haze[..., 3:], 3, axis=-1), np.repeat(cycles[..., 3:], 3, axis=-1)))
+    # Alpha outside the block row holding the wall's top edge, which is tested below: there
+    # Cycles' coverage is off by 0.019 (measured: 0.757 +- 0.003 against the exact 0.738).
+    rows = np.r_[0:8, 16:48]
+    assert_agree(compare_images(np.repeat(haze[:, rows, :, 3:], 3, axis=-1),
+                                np.repeat(cycles[:, rows, :, 3:], 3, axis=-1)))
+
+
+def test_transparent_film_alpha_is_the_edge_coverage(renders):
+    """Where the wall's top edge crosses the sky, alpha is the share of the pixel the wall
+    covers: Haze's row mean (columns with sky above) matches the exact coverage within the
+    runs' noise (measured: 0.7379 against 0.7380). Cycles' does not (0.757, 6 sigma): with
+    Haze's stratified pixel positions the comparison of the two became sensitive to it."""
+    haze = stack(renders["alpha"]["haze"])[..., 3]
+    clear = (haze[:, WALL_EDGE_ROW - 2:WALL_EDGE_ROW, :].max(axis=(0, 1)) == 0.0) & \
+            (haze[:, WALL_EDGE_ROW + 1, :].min(axis=0) == 1.0)
+    assert clear.sum() >= 16, "too little of the wall's edge is seen against the sky"
+    row = haze[:, WALL_EDGE_ROW, clear].mean(axis=1)  # per run
+    sigma = row.std(ddof=1) / np.sqrt(len(row))
+    exact = wall_edge_coverage()
+    from block_stats import t_quantile
+
+    limit = t_quantile(1.0 - 1e-3 / 2.0, len(row) - 1) * sigma + 1e-5  # two-sided, alpha 1e-3
+    assert abs(row.mean() - exact) <= limit, (row.mean(), exact, sigma)
 
 
 def region_window() -> tuple[int, int, int, int]:

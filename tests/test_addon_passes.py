@@ -13,10 +13,12 @@ denoising_passes.h, see renderer/integrator/aovs.py):
   0 scatters or not at random) and the glass (Cycles' data passes skip nothing there, but
   the sample-0 depth is the ball's in both) may differ: at least 95 % of pixels agree.
 * Normal, Mist (World > Mist Pass: linear from 3 m to 8 m), Denoising Normal and Denoising
-  Albedo are means over the samples: exact where
-  every sample sees the same surface (diffuse interiors, to float precision); behind the
-  glass and in the fog 8x8 block means within 0.035 and image means within 0.006 (see the
-  test for what was measured).
+  Albedo are means over the samples: exact where every sample sees the same surface
+  (diffuse interiors, the sky: to float precision); elsewhere 8x8 block means agree within
+  the noise of the RUNS independent renders (Welch t-tests, tests/block_stats.py), tested
+  apart over the glass ball. At the fog cube's outline Cycles scatters more than the cube's
+  optical depth allows; there Haze's Normal is compared with the exact transmittance
+  instead (tests/pass_stage.py).
 """
 
 from __future__ import annotations
@@ -26,14 +28,17 @@ from pathlib import Path
 import numpy as np
 import OpenEXR
 import pytest
+from block_stats import PRECISION, block_tests, t_quantile, worst
 from bpy_helpers import run_blender, shared_numba_cache
+from pass_stage import fog_silhouette, glass_region, wall_behind_fog
 
 pytestmark = [pytest.mark.bpy, pytest.mark.slow]
 
 SIZE = (48, 36)
-SAMPLES = 64
-RUNS = 4
+SAMPLES = 32
+RUNS = 8
 PASSES = ("Depth", "Position", "Normal", "Mist", "Denoising Normal", "Denoising Albedo")
+MEAN_PASSES = ("Normal", "Mist", "Denoising Normal", "Denoising Albedo")
 
 BODY = rf'''
 import math
@@ -185,33 +190,81 @@ def test_depth_of_other_cameras_agrees_with_cycles(renders, camera):
     assert ((c > 0) & (c < 1e9)).mean() > 0.05, "the camera sees too little of the stage"
 
 
-def block_means(images: np.ndarray, block: int = 8) -> np.ndarray:
-    k, h, w, c = images.shape
-    hb, wb = h // block, w // block
-    cut = images[:, :hb * block, :wb * block]
-    return cut.reshape(k, hb, block, wb, block, c).mean(axis=(2, 4))
+def stack(renders, name: str) -> np.ndarray:
+    return np.stack([r[name] for r in renders])
 
 
-@pytest.mark.parametrize("name", ["Normal", "Mist", "Denoising Normal", "Denoising Albedo"])
-def test_mean_passes_agree_with_cycles(renders, name):
-    haze = np.stack([r[name] for r in renders["haze"]])
-    cycles = np.stack([r[name] for r in renders["cycles"]])
+@pytest.mark.parametrize("name", MEAN_PASSES)
+def test_mean_passes_exact_where_deterministic(renders, name):
+    haze, cycles = stack(renders["haze"], name), stack(renders["cycles"], name)
     assert haze.shape == cycles.shape == (RUNS, SIZE[1], SIZE[0], 1 if name == "Mist" else 3)
-    # Exact where the pass is deterministic: every run gives the same pixel in both renderers.
+    # Deterministic: every run gives the same pixel in both renderers (diffuse interiors, sky).
     fixed = (np.ptp(cycles, axis=0).max(axis=-1) < 1e-6) & (np.ptp(haze, axis=0).max(axis=-1) < 1e-6)
     # (Mist varies with the distance across a pixel: only the sky and the far side are fixed.)
     enough = 0.15 if name == "Mist" else 0.4
     assert fixed.mean() > enough, "too few deterministic pixels: the scene is broken"
-    assert np.abs(haze[0] - cycles[0])[fixed].max() < 2e-3
-    # Elsewhere (behind glass, in and behind the fog, silhouettes): block means over the runs.
-    # Measured: 8x8 block means within 0.023 (z up to 11 against the runs' spread: behind
-    # the glass ball and at the fog's edges a few pixels differ by up to 0.1, not explained
-    # yet), image means within 0.0032; Mist within 0.0013 per block. The bounds leave little
-    # room above that.
-    hb, cb = block_means(haze).mean(axis=0), block_means(cycles).mean(axis=0)
-    assert np.abs(hb - cb).max() < 0.035, f"{name}: block means differ by {np.abs(hb - cb).max():.4f}"
-    image_difference = np.abs(haze.mean(axis=(0, 1, 2)) - cycles.mean(axis=(0, 1, 2))).max()
-    assert image_difference < 0.006, f"{name}: image means differ by {image_difference:.4f}"
+    # Float32 precision (measured: 5e-7).
+    assert np.abs(haze[0] - cycles[0])[fixed].max() < PRECISION
+
+
+@pytest.mark.parametrize("name", MEAN_PASSES)
+def test_mean_passes_agree_with_cycles_within_noise(renders, name):
+    """8x8 block means outside the fog cube's outline and the glass ball (tested below),
+    by Welch t-tests from the runs' own spread (tests/block_stats.py), family alpha 1e-3."""
+    haze, cycles = stack(renders["haze"], name), stack(renders["cycles"], name)
+    mask = ~(fog_silhouette(SIZE) | glass_region(SIZE))
+    tests = block_tests(haze, cycles, mask)
+    test, ratio = worst(tests)
+    assert ratio <= 1.0, (f"{name}: block {test.block} channel {test.channel} differs by "
+                          f"{test.difference:.4f}, t {test.t:.1f} (dof {test.dof:.0f}) of {len(tests)}")
+
+
+GLASS_DIFFERS = pytest.mark.xfail(strict=True, reason=(
+    "over the clear glass ball Haze's block means differ from Cycles' beyond noise (measured, "
+    "8 runs of 32 spp: Normal by 0.023 at t 6.8, Denoising Albedo up to 0.027 at t 19; "
+    "Denoising Normal by 0.019 at t 4.3, just inside its threshold), in the ball's upper "
+    "half and rim; not explained yet (suspects: "
+    "the reflect/refract choice at grazing angles with smooth-shaded normals, which Cycles "
+    "corrects, and Fresnel in Cycles' bsdf_albedo)"))
+
+
+@pytest.mark.parametrize("name", [
+    pytest.param(n, marks=GLASS_DIFFERS) if n in ("Normal", "Denoising Albedo") else n for n in MEAN_PASSES])
+def test_mean_passes_through_glass_agree_with_cycles(renders, name):
+    """The same block t-tests over the pixels that see the clear glass ball."""
+    haze, cycles = stack(renders["haze"], name), stack(renders["cycles"], name)
+    tests = block_tests(haze, cycles, glass_region(SIZE))
+    test, ratio = worst(tests)
+    assert ratio <= 1.0, (f"{name}: block {test.block} channel {test.channel} differs by "
+                          f"{test.difference:.4f}, t {test.t:.1f} (dof {test.dof:.0f}) of {len(tests)}")
+
+
+def band_t(images: np.ndarray, expected: np.ndarray, band: np.ndarray) -> tuple[float, float]:
+    """t statistic (and Welch dof) of the band's summed difference from `expected`."""
+    k = images.shape[0]
+    difference = (images.mean(axis=0) - expected)[band].sum()
+    parts = images.var(axis=0, ddof=1)[band] / k
+    return difference / np.sqrt(parts.sum()), parts.sum() ** 2 / (parts**2).sum() * (k - 1)
+
+
+def test_normal_at_the_fog_outline_matches_its_transmittance(renders):
+    """Where camera rays cross a short stretch of the fog cube before the wall, Normal is the
+    wall's (0, -1, 0) times the chance of crossing unscattered: -exp(-sigma_t length)
+    averaged over the pixel (tests/pass_stage.py computes it exactly). Haze agrees within
+    noise (measured: t 2.1 over the 53 pixels). Cycles does not (t 26: its pixels there lie
+    up to 0.2 closer to 0 than the transmittance, i.e. it scatters more than the cube's
+    optical depth allows at the cube's outline), which is why the Cycles comparison leaves
+    these pixels out."""
+    wall, transmittance = wall_behind_fog(SIZE)
+    band = wall & fog_silhouette(SIZE) & (transmittance < 0.999)
+    assert band.sum() >= 20, "the camera sees too little of the fog cube's outline"
+    expected = -transmittance
+    t_haze, dof = band_t(stack(renders["haze"], "Normal")[..., 1], expected, band)
+    t_cycles, _ = band_t(stack(renders["cycles"], "Normal")[..., 1], expected, band)
+    print(f"fog outline, {band.sum()} pixels: Haze t {t_haze:.2f} (dof {dof:.0f}), Cycles t {t_cycles:.2f}")
+    assert abs(t_haze) <= t_quantile(1.0 - 1e-3 / 2.0, dof)
+    for axis in (0, 2):  # the other components are exactly 0
+        assert np.abs(stack(renders["haze"], "Normal")[..., axis].mean(axis=0)[band]).max() < PRECISION
 
 
 def test_unrequested_passes_are_absent(renders):
@@ -255,22 +308,35 @@ def rel_mse(image: np.ndarray, reference: np.ndarray) -> float:
     return float(np.mean((image - reference) ** 2 / (reference ** 2 + 1e-2)))
 
 
-def test_denoise_through_blender_keeps_the_noisy_image(tmp_path):
-    """scene.haze.use_denoising at 16 spp on the Blender-built fog Cornell box
-    (examples/blender_cornell.py, 128x128): Combined is the denoised image, at least 3x closer
-    (relMSE) to a 1024-spp render than the raw one, and the Noisy Image pass is exactly the
-    image rendered without denoising.
-
-    Measured: raw 0.0059, denoised 0.0015 (3.9x). Not the 5x of tests/test_passes.py's fog
-    box (8.9x): here over half of the denoised error sits in the blocks around the emitter,
-    whose edges OIDN softens (with or without the albedo and normal features: 0.0012 without)."""
-    run = run_blender(DENOISE_BODY, tmp_path, timeout=3600, numba_cache=shared_numba_cache())
+@pytest.fixture(scope="module")
+def denoised(tmp_path_factory):
+    run = run_blender(DENOISE_BODY, tmp_path_factory.mktemp("denoise"), timeout=3600,
+                      numba_cache=shared_numba_cache())
     assert run.returncode == 0 and run.result, run.describe()
-    denoised = read_passes(run.result["denoised"])
-    raw = read_passes(run.result["raw"])["Combined"][..., :3]
-    reference = read_passes(run.result["reference"])["Combined"][..., :3]
-    assert {"Noisy Image", "Combined"} <= set(denoised)
-    np.testing.assert_array_equal(denoised["Noisy Image"][..., :3], raw)
-    raw_error, clean_error = rel_mse(raw, reference), rel_mse(denoised["Combined"][..., :3], reference)
+    return {name: read_passes(path) for name, path in run.result.items()}
+
+
+def test_denoise_through_blender_keeps_the_noisy_image(denoised):
+    """scene.haze.use_denoising: Combined is the denoised image, and the Noisy Image pass is
+    exactly the image rendered without denoising."""
+    assert {"Noisy Image", "Combined"} <= set(denoised["denoised"])
+    np.testing.assert_array_equal(denoised["denoised"]["Noisy Image"][..., :3],
+                                  denoised["raw"]["Combined"][..., :3])
+
+
+def test_denoise_through_blender_is_5x_closer(denoised):
+    """The issue's bar: at 16 spp on the Blender-built fog Cornell box (examples/
+    blender_cornell.py, 128x128) the denoised image's relMSE against a 1024-spp render is at
+    least 5x lower than the raw image's.
+
+    Measured: raw 0.0050, denoised 0.00085 (5.9x). With independent pixel positions it was
+    3.9x (0.0059, 0.0015): half the denoised error lay within 3 pixels of the emitter, whose
+    edges carried sub-pixel coverage noise in the image and, identically, in the albedo
+    feature, so OIDN kept it as detail (no OIDN setting helped: clamped albedo, prefiltered
+    features with or without cleanAux, quality, inputScale). Stratified positions
+    (renderer/kernels/sobol.py) remove that noise at its source."""
+    reference = denoised["reference"]["Combined"][..., :3]
+    raw_error = rel_mse(denoised["raw"]["Combined"][..., :3], reference)
+    clean_error = rel_mse(denoised["denoised"]["Combined"][..., :3], reference)
     print(f"relMSE at 16 spp through Blender: raw {raw_error:.4g}, denoised {clean_error:.4g}")
-    assert clean_error * 3.0 <= raw_error
+    assert clean_error * 5.0 <= raw_error

@@ -22,6 +22,8 @@ from addon.export.validate import describe_scene_error
 from addon.session import (
     COMPILING_TEXT,
     MAX_REPORTED_WARNINGS,
+    PREVIEW_MAX_BOUNCES,
+    PREVIEW_SAMPLES,
     RenderSession,
     format_duration,
     main_module_hidden,
@@ -233,6 +235,36 @@ def test_many_warnings_are_capped_in_the_ui(capsys):
     assert shown[:MAX_REPORTED_WARNINGS] == warnings[:MAX_REPORTED_WARNINGS]
     assert shown[-1] == "Haze: 5 more warnings were printed to the console"
     assert "Object 'O24': something" in capsys.readouterr().out
+
+
+class RecordingRenderer(FakeRenderer):
+    """Keeps the scene it was asked to render."""
+
+    def __call__(self, scene, **kwargs):
+        self.scene = scene
+        return super().__call__(scene, **kwargs)
+
+
+def test_material_preview_is_capped_and_quiet():
+    """A preview (engine.is_preview) renders at most PREVIEW_SAMPLES samples with at most
+    PREVIEW_MAX_BOUNCES bounces, Combined only, and reports no export warnings; a normal
+    render keeps the scene's settings."""
+    scene = valid_scene()
+    scene.integrator.spp, scene.integrator.max_bounces, scene.integrator.time_limit = 512, 12, 0.0
+    engine = FakeEngine()
+    engine.is_preview = True
+    renderer = RecordingRenderer(passes=1)
+    run(engine, renderer, export=exporter(scene, warnings=["Material 'M': a texture is ignored"]))
+    integrator = renderer.scene.integrator
+    assert (integrator.spp, integrator.max_bounces) == (PREVIEW_SAMPLES, PREVIEW_MAX_BOUNCES)
+    assert engine.reports == [] and engine.calls[0] == "begin" and engine.calls[-1] == "end"
+    scene = valid_scene()
+    scene.integrator.spp, scene.integrator.max_bounces = 512, 12
+    renderer = RecordingRenderer(passes=1)
+    warnings = ["Material 'M': a texture is ignored"]
+    engine = run(FakeEngine(), renderer, export=exporter(scene, warnings=warnings))
+    assert (renderer.scene.integrator.spp, renderer.scene.integrator.max_bounces) == (512, 12)
+    assert [text for _, text in engine.reports] == ["Material 'M': a texture is ignored"]
 
 
 def test_result_buffer_flips_rows_for_blender():

@@ -363,7 +363,9 @@ def test_512x1x1_grid_matches_the_exact_optical_depth(render):
     medium = grid(np.clip(profile, 0.0, None)[None, None, :], sigma_a=(0.8, 0.8, 0.8), p0=(-1.2, -0.4, -0.4),
                   p1=(1.2, 0.4, 0.4), to_world=to_world)
     scene = grid_in_view(medium, size=8, spp=256)
-    assert_bounded_estimate(render(scene), expected_transmittance(scene, medium, sub=8), "512x1x1")
+    # 32x32 rays per pixel: with 8x8 the reference missed the sliver of the box that pixel
+    # 22 sees (transmittance 0.99898, not 1), which the stratified pixel samples do find.
+    assert_bounded_estimate(render(scene), expected_transmittance(scene, medium, sub=32), "512x1x1")
 
 
 def test_grid_as_the_world_medium(render):

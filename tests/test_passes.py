@@ -17,8 +17,14 @@ from examples.scenes import cornell_box, cornell_fog
 from renderer.compile import compile_scene
 from renderer.denoise import available, denoise
 from renderer.film import REL_EPS
-from renderer.integrator.config import CFG_AOVS
-from renderer.integrator.paths import L_COLUMNS, L_COLUMNS_AOV
+from renderer.integrator.config import CFG_AOVS, CFG_LIGHT_AOVS
+from renderer.integrator.paths import (
+    AOV_COUNT,
+    L_COLUMNS,
+    L_COLUMNS_AOV,
+    L_COLUMNS_LIGHT_AOV,
+    LIGHT_AOV_COUNT,
+)
 from renderer.integrator.wavefront import Tracer
 from renderer.passes import MISS_DEPTH, film_passes
 
@@ -35,6 +41,12 @@ def test_unrequested_passes_cost_nothing():
     scene.film.aovs = True
     tracer = Tracer(compile_scene(scene), scene.integrator)
     assert tracer.cfg[CFG_AOVS] == 1 and tracer.L.shape[1] == L_COLUMNS_AOV
+    # The light and colour passes add their columns only when asked for.
+    assert tracer.cfg[CFG_LIGHT_AOVS] == 0 and render_film(scene).aov.shape[1] == AOV_COUNT
+    scene.film.light_aovs = True
+    tracer = Tracer(compile_scene(scene), scene.integrator)
+    assert tracer.cfg[CFG_LIGHT_AOVS] == 1 and tracer.L.shape[1] == L_COLUMNS_LIGHT_AOV
+    assert render_film(scene).aov.shape[1] == AOV_COUNT + LIGHT_AOV_COUNT
 
 
 @pytest.mark.slow
@@ -45,6 +57,29 @@ def test_passes_leave_the_image_unchanged():
         plain = render_film(scene).image()
         scene.film.aovs = True
         np.testing.assert_array_equal(render_film(scene).image(), plain)
+        scene.film.light_aovs = True
+        np.testing.assert_array_equal(render_film(scene).image(), plain)
+
+
+@pytest.mark.slow
+def test_light_passes_add_up_to_the_denoising_albedo():
+    """In a box of diffuse walls with an emitter and no glossy lobes, every camera path's
+    first hit is diffuse-like, so its Denoising Albedo is that hit's diffuse albedo (Diffuse
+    Color) plus the emission seen there (Emission): the three agree to float precision, and
+    Emission is the emitter's radiance where it fills a pixel, 0 where it is not seen."""
+    scene = cornell_box(size=32, spp=4)
+    scene.film.aovs = scene.film.light_aovs = True
+    film = render_film(scene, workers=2)
+    names = ("Denoising Albedo", "Diffuse Color", "Glossy Color", "Emission")
+    passes = film_passes(film, scene.camera, names)
+    np.testing.assert_allclose(passes["Diffuse Color"] + passes["Emission"], passes["Denoising Albedo"],
+                               atol=1e-6)
+    assert (passes["Glossy Color"] == 0.0).all()
+    emission = passes["Emission"].max(axis=-1)
+    lit = emission == emission.max()
+    assert 0 < lit.sum() < emission.size // 4 and (emission[emission < emission.max()] < emission.max()).all()
+    assert (emission == 0.0).mean() > 0.5
+    assert passes["Diffuse Color"].max() <= 1.0 and passes["Diffuse Color"].min() >= 0.0
 
 
 @pytest.mark.slow
@@ -111,3 +146,9 @@ def test_memory_estimate_counts_the_pass_sums():
     plain = render_memory_bytes(scene.film, 2)
     scene.film.aovs = True
     assert render_memory_bytes(scene.film, 2) == plain + 100 * 100 * AOV_BYTES_PER_PIXEL * (1 + 2 * 2)
+    from renderer.memory import LIGHT_AOV_BYTES_PER_PIXEL
+
+    assert LIGHT_AOV_BYTES_PER_PIXEL == LIGHT_AOV_COUNT * 8
+    scene.film.light_aovs = True
+    light = (AOV_BYTES_PER_PIXEL + LIGHT_AOV_BYTES_PER_PIXEL) * (1 + 2 * 2)
+    assert render_memory_bytes(scene.film, 2) == plain + 100 * 100 * light

@@ -106,6 +106,15 @@ def panorama_sensor(data) -> float:
     return float(data.sensor_height if data.sensor_fit == "VERTICAL" else data.sensor_width)
 
 
+def render_warnings(render, scene_name: str, messages: Messages) -> None:
+    """Output settings Haze renders without: said once, the render goes on."""
+    if render.pixel_aspect_x != render.pixel_aspect_y:
+        messages.warn(f"Scene '{scene_name}'", "non-square pixel aspect is ignored")
+    if getattr(render, "use_motion_blur", False):
+        messages.warn(f"Scene '{scene_name}'",
+                      "motion blur is not supported: the scene renders as it is at the current frame")
+
+
 def export_camera(camera_object, film: Film, render, scene_name: str, messages: Messages) -> Camera:
     if camera_object is None:
         raise ExportError(f"Scene '{scene_name}'",
@@ -115,8 +124,7 @@ def export_camera(camera_object, film: Film, render, scene_name: str, messages: 
         raise ExportError(subject, "is the scene camera but is not a camera object")
     data = camera_object.data
     projection = projection_of(data, subject)
-    if render.pixel_aspect_x != render.pixel_aspect_y:
-        messages.warn(f"Scene '{scene_name}'", "non-square pixel aspect is ignored")
+    render_warnings(render, scene_name, messages)
     try:
         to_world = rigid_matrix(camera_object.matrix_world)
     except ValueError:

@@ -24,19 +24,23 @@ microfacet lobes; Haze's plastic and rough conductor are not corrected for it).
 
 import math
 
-from ..bsdfs import DIFFUSE, PLASTIC, ROUGH_CONDUCTOR, SIDE_BACK, SIDE_FRONT, TRANSPARENT
-from ..bsdfs.layout import L_COLOR, L_KIND, L_ROUGH, L_SIDES, L_WEIGHT, M_COUNT, M_FIRST
+from ..bsdfs import CONDUCTOR, DIFFUSE, PLASTIC, ROUGH_CONDUCTOR, SIDE_BACK, SIDE_FRONT, TRANSPARENT
+from ..bsdfs.layout import L_COLOR, L_IOR, L_KIND, L_ROUGH, L_SIDES, L_WEIGHT, M_COUNT, M_FIRST
 from ..bsdfs.material import _lobe_selection
+from ..bsdfs.spec_albedo import spec_albedo
 from ..camera import ORTHOGRAPHIC, PROJ_KIND
 from ..kernels import kernel
 from .paths import (
     AOV_DALBEDO,
     AOV_DATA_DONE,
+    AOV_DIFFUSE_COLOR,
     AOV_DNORMAL,
     AOV_DNORMAL_VOLUME,
+    AOV_EMISSION,
     AOV_FEAT_DEPTH,
     AOV_FEAT_DONE,
     AOV_FEAT_T,
+    AOV_GLOSSY_COLOR,
     AOV_HIT0,
     AOV_MIST,
     AOV_NORMAL,
@@ -57,6 +61,48 @@ def aov_emission(L, pid, beta, le, w):
         return
     for c in range(3):
         L[pid, AOV_DALBEDO + c] += L[pid, AOV_FEAT_T + c] * le[c] * w
+
+
+@kernel
+def aov_emission_pass(L, pid, beta, le, w):
+    """Emission (surface or volume) found by a camera path before it scattered: the Emission
+    pass (Cycles writes it where PATH_RAY_ANY_PASS is not yet set; the world goes to its own
+    Background pass, not written)."""
+    for c in range(3):
+        L[pid, AOV_EMISSION + c] += beta[c] * le[c] * w
+
+
+@kernel
+def aov_colors(L, pid, mt, m, front, mu, beta):
+    """Diffuse and Glossy Color at a hit before the path scattered (Cycles writes them at
+    every such hit: transparent surfaces in front add theirs): beta x the diffuse-like and
+    glossy lobes' albedo for the view direction with cosine mu. Diffuse lobes give weight x
+    colour; the Principled base its share left by the layer, colour x (1 - E(mu)), and the
+    layer E(mu) (Cycles' tabulated estimate, renderer.bsdfs.spec_albedo); mirrors and GGX
+    reflection weight x colour (Cycles' Glossy BSDF, no Fresnel). Glass and transparent
+    lobes go to neither (Cycles puts glass's reflectance in Glossy Color: not written)."""
+    mats, lobes = mt
+    start = mats[m, M_FIRST]
+    side = SIDE_FRONT if front else SIDE_BACK
+    for j in range(start, start + mats[m, M_COUNT]):
+        if (int(lobes[j, L_SIDES]) & side) == 0:
+            continue
+        kind = int(lobes[j, L_KIND])
+        if kind == DIFFUSE or kind == PLASTIC:
+            left = 1.0
+            if kind == PLASTIC:
+                ior = float(lobes[j, L_IOR])
+                e = spec_albedo(mu, float(lobes[j, L_ROUGH]), ior if ior >= 1.0 else 1.0 / max(ior, 1e-6))
+                left = 1.0 - e
+                for c in range(3):
+                    L[pid, AOV_GLOSSY_COLOR + c] += beta[c] * float(lobes[j, L_WEIGHT + c]) * e
+            for c in range(3):
+                a = float(lobes[j, L_WEIGHT + c]) * float(lobes[j, L_COLOR + c])
+                L[pid, AOV_DIFFUSE_COLOR + c] += beta[c] * a * left
+        elif kind == ROUGH_CONDUCTOR or kind == CONDUCTOR:
+            for c in range(3):
+                a = float(lobes[j, L_WEIGHT + c]) * float(lobes[j, L_COLOR + c])
+                L[pid, AOV_GLOSSY_COLOR + c] += beta[c] * a
 
 
 @kernel

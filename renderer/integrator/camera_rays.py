@@ -11,6 +11,7 @@ frame, so a window renders the same pixels as the whole frame does.
 from ..camera import RASTER_WIDTH, RASTER_X0, RASTER_Y0, camera_ray
 from ..kernels import kernel
 from ..kernels.rng import path_key, uniform
+from ..kernels.sobol import pixel_shift, sobol_2d
 from ..kernels.vecmath import madd
 from .dims import CAMERA_DIMS, LENS_DIM
 from .paths import PATH_ACTIVE, PATH_DEAD, store3
@@ -29,8 +30,12 @@ def start_paths(ps, pixel_of_pid, cam, width, height, seed, first, n, sample_bas
         # The pixel's place in the full frame.
         px = int(raster[RASTER_X0]) + pixel % width
         py = int(raster[RASTER_Y0]) + pixel // width
-        key = path_key(seed, py * int(raster[RASTER_WIDTH]) + px, sample)
-        o, d, near, length, ok = camera_ray(cam, px, py, uniform(key, 0), uniform(key, 1),
+        frame_pixel = py * int(raster[RASTER_WIDTH]) + px
+        key = path_key(seed, frame_pixel, sample)
+        # Stratified within the pixel over its samples (kernels.sobol); dimensions 0 and 1
+        # of the key stay reserved for it.
+        u, v = sobol_2d(sample, pixel_shift(seed, frame_pixel))
+        o, d, near, length, ok = camera_ray(cam, px, py, u, v,
                                             uniform(key, LENS_DIM), uniform(key, LENS_DIM + 1))
         # Rays start at the near clip distance and end at the far one.
         store3(ps.o, i, madd(o, d, near))

@@ -28,6 +28,7 @@ CONFIG = Layout("integrator config", [
     ("nee_batch", 1),  # homogeneous next-event vertices in SIMD batches (nee_batch); 0 = scalar
     ("film_transparent", 1),  # Film > Transparent: the world seen directly gives alpha 0
     ("aovs", 1),  # write the render passes' columns of L (integrator.paths AOV_*); 0 = none
+    ("light_aovs", 1),  # also the light and colour passes' columns (needs aovs); 0 = none
 ])
 CFG_MAX_BOUNCES = CONFIG.offset("max_bounces")
 CFG_RR_DEPTH = CONFIG.offset("rr_depth")
@@ -40,6 +41,7 @@ CFG_WALK_SHADOWS = CONFIG.offset("walk_shadows")
 CFG_NEE_BATCH = CONFIG.offset("nee_batch")
 CFG_FILM_TRANSPARENT = CONFIG.offset("film_transparent")
 CFG_AOVS = CONFIG.offset("aovs")
+CFG_LIGHT_AOVS = CONFIG.offset("light_aovs")
 CFG_SIZE = CONFIG.size
 
 # How direct light is estimated: both techniques weighted by MIS, light sampling only, or
@@ -60,5 +62,6 @@ def make_config(cs: CompiledScene, settings: IntegratorSettings) -> np.ndarray:
     cfg[CFG_WALK_SHADOWS] = cs.needs_shadow_walk
     cfg[CFG_NEE_BATCH] = 1
     cfg[CFG_FILM_TRANSPARENT] = cs.transparent
-    cfg[CFG_AOVS] = cs.aovs
+    cfg[CFG_AOVS] = cs.aovs or cs.light_aovs
+    cfg[CFG_LIGHT_AOVS] = cs.light_aovs
     return cfg

@@ -22,10 +22,11 @@ from ..lights.environment import connect_light_env
 from ..lights.sample import light_has_point, light_pmf, light_point, pick_light
 from ..lights.table import LT_CDF
 from . import nee_batch
-from .aovs import aov_after_medium, aov_medium_segment
+from .aovs import aov_after_medium, aov_emission_pass, aov_medium_segment
 from .config import (
     CFG_AOVS,
     CFG_EQUIANGULAR,
+    CFG_LIGHT_AOVS,
     CFG_MAX_BOUNCES,
     CFG_NEE_BATCH,
     CFG_RR_DEPTH,
@@ -156,6 +157,7 @@ def shade_media(n, ps, prim, lt, env, md, cfg, L, sh, nb, grid_md):
     cdf = lt[LT_CDF]  # what pick_light searches: L + 1 entries
     batched = cfg[CFG_NEE_BATCH] != 0
     aovs = cfg[CFG_AOVS] != 0  # render passes requested (integrator.aovs)
+    light_aovs = cfg[CFG_LIGHT_AOVS] != 0  # and the light passes (Emission: depth 0)
     queued = np.int64(0)
     for i in range(n):
         stack = ps.stack[i]
@@ -193,6 +195,8 @@ def shade_media(n, ps, prim, lt, env, md, cfg, L, sh, nb, grid_md):
                 le = segment_emission(md, stack, st, t_hit)
                 if max3(le) > 0.0:
                     add_radiance(L, pid, beta, le)
+                    if light_aovs and depth == 0:
+                        aov_emission_pass(L, pid, beta, le, 1.0)
                 nee_batch.record(nb, queued, i, key, dim, lt, light, o, d, t_hit, beta, ss, st,
                                  phase_g(md, stack[0]), use_eq, depth + 1 >= cfg[CFG_RR_DEPTH])
                 queued += 1
@@ -220,6 +224,8 @@ def shade_media(n, ps, prim, lt, env, md, cfg, L, sh, nb, grid_md):
                                                             uniform_channel)
         if max3(le) > 0.0:
             add_radiance(L, pid, beta, le)
+            if light_aovs and depth == 0:
+                aov_emission_pass(L, pid, beta, le, 1.0)
         beta = mul(beta, w)
         ps.dim[i] = dim
         if max3(beta) <= 0.0 or (scattered and depth > max_bounces):

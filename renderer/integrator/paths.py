@@ -44,6 +44,14 @@ AOV_FEAT_DONE = 21  # scratch: the denoising features were written
 AOV_FEAT_T = 22  # scratch, 3 columns: feature throughput (product of the specular albedos passed)
 AOV_FEAT_DEPTH = 25  # scratch: the path's depth after the last surface the features looked at
 L_COLUMNS_AOV = 26
+# With the light and colour passes also requested (CFG_LIGHT_AOVS) L has L_COLUMNS_LIGHT_AOV
+# columns: LIGHT_AOV_COUNT more after the scratch, which the film sums after the AOV_COUNT.
+LIGHT_AOV_FIRST = 26
+AOV_EMISSION = 26  # Emission: emission the camera path found before scattering (Cycles' Emit)
+AOV_DIFFUSE_COLOR = 29  # throughput x diffuse albedo at each hit before scattering
+AOV_GLOSSY_COLOR = 32  # throughput x glossy albedo at each hit before scattering
+LIGHT_AOV_COUNT = 9
+L_COLUMNS_LIGHT_AOV = 35
 
 
 @inline_kernel

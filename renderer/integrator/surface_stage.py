@@ -33,10 +33,11 @@ from ..lights.sample import (
     triangle_light_pdf,
 )
 from ..lights.table import LT_CDF
-from .aovs import aov_after_medium, aov_background, aov_emission, aov_surface
+from .aovs import aov_after_medium, aov_background, aov_colors, aov_emission, aov_emission_pass, aov_surface
 from .config import (
     CFG_AOVS,
     CFG_FILM_TRANSPARENT,
+    CFG_LIGHT_AOVS,
     CFG_MAX_BOUNCES,
     CFG_RR_DEPTH,
     CFG_SAMPLING,
@@ -80,6 +81,7 @@ def shade_surface(n, ps, prim, bu, bv, geo, mt, override, lt, env_light, sun_row
     sampling = cfg[CFG_SAMPLING]
     transparent = cfg[CFG_FILM_TRANSPARENT] != 0
     aovs = cfg[CFG_AOVS] != 0  # render passes requested (integrator.aovs); else no pass work at all
+    light_aovs = cfg[CFG_LIGHT_AOVS] != 0  # and the light and colour passes
     cdf = lt[LT_CDF]  # what pick_light searches: L + 1 entries
     for i in range(n):
         if ps.alive[i] != PATH_ACTIVE:
@@ -141,6 +143,8 @@ def shade_surface(n, ps, prim, bu, bv, geo, mt, override, lt, env_light, sun_row
                 add_weighted_radiance(L, pid, beta, le, w)
                 if aov_open:
                     aov_emission(L, pid, beta, le, w)
+                if light_aovs and depth == 0:
+                    aov_emission_pass(L, pid, beta, le, w)
 
         if not bsdf_has_lobes(mt, m, front):
             if light >= 0:
@@ -157,6 +161,8 @@ def shade_surface(n, ps, prim, bu, bv, geo, mt, override, lt, env_light, sun_row
         sn = _shading_normal(geo, p, b0, b1, b2, ng)
         if aov_open:
             aov_surface(L, pid, mt, m, front, x, sn if front else neg(sn), depth, beta, cam, mist)
+        if light_aovs and depth == 0:
+            aov_colors(L, pid, mt, m, front, abs(dot(d, sn)), beta)
         if depth > max_bounces:
             ps.alive[i] = PATH_DEAD
             continue

@@ -21,10 +21,18 @@ from ..scene import IntegratorSettings
 from ..shading.stage import FIELD_OFFSETS, scratch_table, shade_programs
 from . import stages as K
 from .aovs import aov_surface
-from .config import CFG_AOVS, make_config
+from .config import CFG_AOVS, CFG_LIGHT_AOVS, make_config
 from .media_stage import _flush_nee_batch
 from .nee_batch import NeeBatch
-from .paths import AOV_COUNT, AOV_FEAT_T, AOV_SAMPLE0, L_COLUMNS, L_COLUMNS_AOV
+from .paths import (
+    AOV_COUNT,
+    AOV_FEAT_T,
+    AOV_SAMPLE0,
+    L_COLUMNS,
+    L_COLUMNS_AOV,
+    L_COLUMNS_LIGHT_AOV,
+    LIGHT_AOV_COUNT,
+)
 from .state import allocate_paths, allocate_shadows
 
 
@@ -84,7 +92,10 @@ class Tracer:
         self.cfg = make_config(cs, settings)
         self.aovs = bool(self.cfg[CFG_AOVS])
         # RGB and transparency, and the render passes' columns when they were asked for.
-        self.L = np.zeros((self.batch, L_COLUMNS_AOV if self.aovs else L_COLUMNS), np.float64)
+        light = bool(self.cfg[CFG_LIGHT_AOVS])
+        columns = L_COLUMNS_LIGHT_AOV if light else L_COLUMNS_AOV if self.aovs else L_COLUMNS
+        self.L = np.zeros((self.batch, columns), np.float64)
+        self.aov_columns = AOV_COUNT + (LIGHT_AOV_COUNT if light else 0)  # the film's pass sums
         self.no_aov = np.zeros((0, AOV_COUNT), np.float64)  # splat's film_aov without passes
         self.mist = np.array(cs.mist, np.float64)  # the Mist pass's start, 1 / depth, falloff
         self.pixel_of_pid = np.zeros(self.batch, np.int32)
@@ -203,7 +214,7 @@ class Tracer:
             if count:
                 self._shadows(count)
             live = K.compact_paths(live, ps)
-        film_aov = film.ensure_aov() if self.aovs else self.no_aov
+        film_aov = film.ensure_aov(self.aov_columns) if self.aovs else self.no_aov
         K.splat(n, self.L, self.pixel_of_pid, film.sum, film.sq, film.n, film.nonfinite, film.alpha, film_aov)
 
     def _start_aovs(self, first: int, n: int, sample_base: int) -> None:

@@ -1,0 +1,88 @@
+"""Analytic geometry of tests/test_addon_passes.py's stage, seen by its camera: which
+pixels see the fog cube's silhouette or the glass ball, and the exact mean transmittance
+through the fog cube of every pixel (numpy only, no renderer).
+
+Camera: at (0, -4.5, 1.6), rotated 75 degrees about X, 35 mm lens on a 36 mm sensor fitted
+horizontally, box pixel filter of width 1. Row 0 of every image is the top row.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+CAMERA = np.array([0.0, -4.5, 1.6])
+TILT = math.radians(75.0)
+LENS, SENSOR = 35.0, 36.0
+FOG_LOW, FOG_HIGH = np.array([0.9, 0.7, 0.1]), np.array([1.9, 1.7, 1.1])  # C.box("Fog", ...)
+FOG_SIGMA_T = 0.9  # Volume Scatter: colour 0.9 x density 1; no absorption
+GLASS_CENTER, GLASS_RADIUS = np.array([0.3, -0.5, 0.45]), 0.45
+WALL_Y, WALL_TOP = 2.0, 1.5
+
+
+def pixel_rays(size: tuple[int, int], n: int, tilt: float = TILT) -> np.ndarray:
+    """(H, W, n*n, 3) world directions of an n x n grid of points in every pixel, for the
+    camera turned `tilt` radians about X."""
+    width, height = size
+    u = (np.arange(n) + 0.5) / n
+    py, px, vy, vx = np.meshgrid(np.arange(height), np.arange(width), u, u, indexing="ij")
+    x = (px + vx) / width - 0.5
+    y = 0.5 - (py + vy) / height
+    local = np.stack([x * SENSOR / LENS, y * SENSOR * height / width / LENS, -np.ones_like(x)], -1)
+    c, s = math.cos(tilt), math.sin(tilt)
+    rotation = np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
+    directions = local @ rotation.T
+    directions /= np.linalg.norm(directions, axis=-1, keepdims=True)
+    return directions.reshape(height, width, n * n, 3)
+
+
+def fog_length(directions: np.ndarray) -> np.ndarray:
+    """Length of each ray's path through the fog cube (slab method), 0 if it misses."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t1, t2 = (FOG_LOW - CAMERA) / directions, (FOG_HIGH - CAMERA) / directions
+    enter = np.nanmax(np.minimum(t1, t2), axis=-1)
+    leave = np.nanmin(np.maximum(t1, t2), axis=-1)
+    return np.clip(leave - np.maximum(enter, 0.0), 0.0, None)
+
+
+def hits_sphere(directions: np.ndarray, center: np.ndarray, radius: float,
+                camera: np.ndarray = CAMERA) -> np.ndarray:
+    oc = camera - center
+    b = directions @ oc
+    return b * b - (oc @ oc - radius**2) > 0.0
+
+
+def hits_glass(directions: np.ndarray) -> np.ndarray:
+    return hits_sphere(directions, GLASS_CENTER, GLASS_RADIUS)
+
+
+def dilate(mask: np.ndarray) -> np.ndarray:
+    """A pixel and its 8 neighbours."""
+    padded = np.pad(mask, 1)
+    h, w = mask.shape
+    return np.any([padded[y:y + h, x:x + w] for y in range(3) for x in range(3)], axis=0)
+
+
+def fog_silhouette(size: tuple[int, int]) -> np.ndarray:
+    """(H, W) pixels that see the fog cube but where some rays cross less than optical depth
+    0.5 of it (its outline), with their neighbours."""
+    depth = fog_length(pixel_rays(size, 16)) * FOG_SIGMA_T
+    return dilate((depth.max(axis=-1) > 0.0) & (depth.min(axis=-1) < 0.5))
+
+
+def glass_region(size: tuple[int, int]) -> np.ndarray:
+    """(H, W) pixels that see any of the glass ball, with their neighbours."""
+    return dilate(hits_glass(pixel_rays(size, 16)).any(axis=-1))
+
+
+def wall_behind_fog(size: tuple[int, int], n: int = 32) -> tuple[np.ndarray, np.ndarray]:
+    """Pixels whose rays all reach the wall (through the fog cube or beside it) and no glass,
+    and their mean transmittance through the fog: ((H, W) bool, (H, W) float)."""
+    directions = pixel_rays(size, n)
+    t_wall = (WALL_Y - CAMERA[1]) / directions[..., 1]
+    z_wall = CAMERA[2] + t_wall * directions[..., 2]
+    on_wall = ((t_wall > 0) & (z_wall > 0.0) & (z_wall < WALL_TOP)).all(axis=-1)
+    clear = ~dilate(hits_glass(directions).any(axis=-1))
+    transmittance = np.exp(-FOG_SIGMA_T * fog_length(directions)).mean(axis=-1)
+    return on_wall & clear, transmittance
