@@ -214,8 +214,20 @@ class _PoolRender:
         for worker in self.pool.idle():
             unit = heapq.heappop(self.retry) if self.retry else next(self.fresh, None)
             if unit is None:
+                self._warm_idle(shipment)
                 return
             worker.send(shipment, unit, self.settings.seed)
+
+    def _warm_idle(self, shipment: Shipment) -> None:
+        """Workers left without a unit while another compiles load the scene's tracer all the
+        same: on a cold cache they take kernels off the compiling one (a 1-sample render or a
+        preview has one unit; F12 of the surface box at 1 spp: one worker compiled all 179
+        functions)."""
+        if not any(w.compiling for w in self.pool.workers):
+            return
+        for worker in self.pool.idle():
+            if worker.scene_key != shipment.key:
+                worker.warm(shipment)
 
     def _wait_time(self) -> float:
         return min(self.clock.left(), self.stop_at - time.perf_counter(), 3600.0)

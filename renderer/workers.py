@@ -160,17 +160,23 @@ def _worker_main(conn: Connection) -> None:
         try:
             if shipment.key != key:
                 tracer = None  # free the old scene before loading the new one
-                tracer = _load_tracer(shipment, conn)
+                tracer = _load_tracer(shipment, conn if unit is not None else None)
                 key = shipment.key
-            conn.send(("done", unit.index, trace_unit(tracer, unit, seed)))
+            if unit is not None:
+                conn.send(("done", unit.index, trace_unit(tracer, unit, seed)))
         except Exception as error:  # reported to the parent, which raises it there
-            conn.send(("error", unit.index, _picklable(error), traceback.format_exc()))
+            if unit is not None:  # a warm-up's failure is reported by the unit that follows it
+                conn.send(("error", unit.index, _picklable(error), traceback.format_exc()))
 
 
-def _load_tracer(shipment: Shipment, conn: Connection) -> Tracer:
+def _load_tracer(shipment: Shipment, conn: Connection | None) -> Tracer:
+    """The scene's tracer (its kernels compiled or loaded), saying "compile" and "ready" on
+    conn; silently for a warm-up (conn None), whose messages nobody would read in time."""
     from .integrator.wavefront import Tracer
 
     cs, settings = load_shipment(shipment.path)
+    if conn is None:
+        return Tracer(cs, settings)
     tracer = Tracer(cs, settings, lambda names: conn.send(("compile", names)))
     conn.send(("ready",))
     return tracer
@@ -210,13 +216,23 @@ class Worker:
         child.close()
         self.unit: Unit | None = None  # the unit in flight
         self.compiling = False
+        self.scene_key = ""  # the shipment it was last sent (warm-up or unit)
 
     def send(self, shipment: Shipment, unit: Unit, seed: int) -> None:
-        self.unit = unit
+        self.unit, self.scene_key = unit, shipment.key
         try:
             self.conn.send((shipment, unit, seed))
         except OSError:
             pass  # it died: its sentinel says so at the next wait, and the unit is retried
+
+    def warm(self, shipment: Shipment) -> None:
+        """Load the scene's tracer without a unit: its kernels are compiled (or loaded) now,
+        with nothing said back; a unit sent later waits in the pipe until that is done."""
+        self.scene_key = shipment.key
+        try:
+            self.conn.send((shipment, None, 0))
+        except OSError:
+            pass
 
     def alive(self) -> bool:
         return self.process.is_alive()

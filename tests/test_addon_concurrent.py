@@ -59,7 +59,7 @@ def test_two_blenders_on_one_cold_cache_never_compile_the_same_function(tmp_path
     for run in runs.values():
         assert run.returncode == 0 and run.result["finite"] and run.result["mean"] > 0, run.describe()
     lines = [line.split("\t") for line in log.read_text().splitlines()]
-    compiled = Counter((function, args) for _, function, args in lines)
+    compiled = Counter((function, args) for _, function, args, _ in lines)
     twice = [key for key, count in compiled.items() if count > 1]
     assert not twice, twice
     # The cache was cold: the surface stage was compiled, once, by one of the workers.

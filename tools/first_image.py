@@ -220,6 +220,8 @@ def base_environment(cache: Path) -> dict[str, str]:
     """This environment without Haze's, numba's and Blender's settings; HAZE_CACHE_DIR = cache."""
     env = {k: v for k, v in os.environ.items() if not k.startswith(("HAZE_", "NUMBA_", "BLENDER_"))}
     env.update(HAZE_CACHE_DIR=str(cache), HAZE_BACKGROUND_COMPILE="0", PYTHONUNBUFFERED="1")
+    if os.environ.get("HAZE_COMPILE_LOG"):  # kept: who compiled what, and when
+        env["HAZE_COMPILE_LOG"] = os.environ["HAZE_COMPILE_LOG"]
     return env
 
 

@@ -129,9 +129,10 @@ _compile_log = None
 
 class CompileLog(event.Listener):
     """One line per function this process compiled (not loaded from the cache): process id,
-    function, argument types, tab-separated, appended to the file HAZE_COMPILE_LOG names.
-    Worker processes inherit the variable, so one file shows which process compiled what
-    (e.g. that two renders on a cold cache never compiled the same function twice)."""
+    function, argument types and the time it was done (Unix seconds), tab-separated,
+    appended to the file HAZE_COMPILE_LOG names. Worker processes inherit the variable, so
+    one file shows which process compiled what and when (e.g. that two renders on a cold
+    cache never compiled the same function twice)."""
 
     def __init__(self, path: str) -> None:
         self.path = path
@@ -141,7 +142,7 @@ class CompileLog(event.Listener):
 
     def on_end(self, ev) -> None:
         func = ev.data["dispatcher"].py_func
-        line = f"{os.getpid()}\t{func.__module__}.{func.__qualname__}\t{ev.data['args']}\n"
+        line = f"{os.getpid()}\t{func.__module__}.{func.__qualname__}\t{ev.data['args']}\t{time.time():.3f}\n"
         with open(self.path, "a", encoding="utf-8") as f:  # one short append: not interleaved
             f.write(line)
 
