@@ -16,13 +16,8 @@ from render_helpers import render_film
 from examples.scenes import quad
 from renderer.compile import compile_scene
 from renderer.errors import SceneError
-from renderer.lights.environment import (
-    environment_radiance,
-    lookup,
-    mirror_ball_uv,
-    sample_environment,
-    uv_to_direction,
-)
+from renderer.lights.environment import environment_radiance, sample_environment
+from renderer.lights.environment_lookup import lookup, mirror_ball_uv, uv_to_direction
 from renderer.lights.environment_map import build_environment
 from renderer.scene import Camera, Environment, IntegratorSettings, Lobe, Material, Mesh, Scene
 from renderer.scene import Film as FilmSettings

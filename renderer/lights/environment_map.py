@@ -7,15 +7,8 @@ pixel, proportional to f[i, j] = (the mean of the interpolated luminance over th
 sin(theta at the row's centre), as pbrt's 2-D piecewise-constant distribution and Cycles'
 background map.
 
-Kernel tuple (None for a constant world, so that no kernel compiles the map's code):
-  ENV_IMAGE    (H, W, 3) float32  radiance, W/(m^2 sr), before the tint
-  ENV_FUNC     (H, W) float64     f, the unnormalised density per pixel
-  ENV_ROW_CDF  (H + 1,) float64   marginal cdf over rows
-  ENV_COL_CDF  (H, W + 1) float64 conditional cdf over the columns of each row
-  ENV_ROT      (3, 3) float64     world -> map rotation
-  ENV_INFO     (6,) float64       tint r, g, b; H W / sum(f) (normalises f into p(u, v));
-                                  interpolation code (ENV_INTERPOLATIONS); projection code
-                                  (ENV_PROJECTIONS)
+Kernel tuple: laid out in renderer.lights.environment_lookup (None for a constant world,
+so that no kernel compiles the map's code).
 The distribution is over the equirectangular (u, v) of the map's frame whatever the image's
 projection: for an equirectangular image its own pixels (H, W above), for a mirror ball a
 grid evaluated from the image (_grid_radiance).
@@ -28,11 +21,16 @@ import math
 import numpy as np
 
 from ..scene import ENV_INTERPOLATIONS, ENV_PROJECTIONS, LUMINANCE, Environment
+from .environment_lookup import (
+    CLOSEST,
+    INFO_INTERP,
+    INFO_NORM,
+    INFO_PROJ,
+    INFO_TINT,
+    MIRROR_BALL,
+    evaluate_grid,
+)
 
-ENV_IMAGE, ENV_FUNC, ENV_ROW_CDF, ENV_COL_CDF, ENV_ROT, ENV_INFO = range(6)
-INFO_TINT, INFO_NORM, INFO_INTERP, INFO_PROJ = 0, 3, 4, 5
-CLOSEST = ENV_INTERPOLATIONS["closest"]
-MIRROR_BALL = ENV_PROJECTIONS["mirror_ball"]
 # A mirror-ball image is sampled through an equirectangular grid of at most this many rows
 # (twice as many columns), evaluated at 2 x 2 points per cell.
 MAX_GRID_ROWS = 512
@@ -92,8 +90,6 @@ def _reader(env: Environment) -> tuple:
 def _grid_radiance(reader: tuple) -> np.ndarray:
     """(rows, 2 rows, 3) radiance of a map of any projection averaged over the cells of an
     equirectangular grid (2 x 2 points each), as Cycles evaluates its background map."""
-    from .environment import evaluate_grid  # the kernels import this module
-
     rows = int(min(max(reader[0].shape[0], 16), MAX_GRID_ROWS))
     out = np.zeros((rows, 2 * rows, 3))
     evaluate_grid(reader, out)
