@@ -185,11 +185,23 @@ def haze_reference(scene: Scene, folder: Path, target: float, time_cap: float, w
 # ------------------------------------------------------------------------------ Cycles
 
 
-def run_cycles(scene_dir: Path, out: Path, samples: list[int], seeds: tuple[int, ...], time_limit: float,
+def cycles_source(folder: Path) -> Path:
+    """What Cycles renders: the Blender scene itself for a scene built in Blender
+    (bench/blend_scenes.py puts it beside the export), else the Haze scene folder, which
+    tools/cycles_reference.py rebuilds in bpy."""
+    blend = folder / "scene.blend"
+    return blend if blend.is_file() else folder / "scene"
+
+
+def run_cycles(folder: Path, out: Path, samples: list[int], seeds: tuple[int, ...], time_limit: float,
                threads: int) -> dict:
     """tools/cycles_reference.py in a subprocess (bpy lives only there); its timings."""
-    command = [sys.executable, str(CYCLES_TOOL), str(scene_dir), str(out), "--samples", *map(str, samples),
-               "--seeds", *map(str, seeds), "--threads", str(threads), "--time-limit", str(time_limit)]
+    from renderer.scenefile import load_scene
+
+    bounces = load_scene(folder / "scene").integrator.max_bounces
+    command = [sys.executable, str(CYCLES_TOOL), str(cycles_source(folder)), str(out),
+               "--samples", *map(str, samples), "--seeds", *map(str, seeds), "--threads", str(threads),
+               "--time-limit", str(time_limit), "--max-bounces", str(bounces)]
     process = subprocess.run(command, capture_output=True, text=True, cwd=REPO)
     if process.returncode != 0:
         raise RuntimeError(f"Cycles failed ({process.returncode}):\n{process.stdout[-3000:]}\n"
@@ -213,7 +225,7 @@ def cycles_reference(folder: Path, samples_per_seed: int, time_limit: float, thr
     else:
         seeds = CYCLES_REFERENCE_SEEDS
         print(f"  Cycles reference: {len(seeds)} seeds x {samples_per_seed} samples", flush=True)
-        timings = run_cycles(folder / "scene", out, [samples_per_seed], seeds, time_limit, threads)
+        timings = run_cycles(folder, out, [samples_per_seed], seeds, time_limit, threads)
     images = np.stack([image for seed in CYCLES_REFERENCE_SEEDS for _, image in cycles_images(timings, seed)])
     seconds = sum(r["seconds"] for r in timings["renders"])
     return stack_reference(images, timings["renders"][0]["samples"], seconds)
@@ -225,7 +237,7 @@ def cycles_curves(folder: Path, max_seconds: float, haze_ref: Reference, threads
     errors against Cycles' own converged reference and against Haze's."""
     out = Path(tempfile.mkdtemp(prefix="haze-cycles-curve-"))
     try:
-        timings = run_cycles(folder / "scene", out, [2**k for k in range(17)], (CYCLES_SEED,), max_seconds,
+        timings = run_cycles(folder, out, [2**k for k in range(17)], (CYCLES_SEED,), max_seconds,
                              threads)
         renders = cycles_images(timings, CYCLES_SEED)
         against_haze = Curve("Cycles vs Haze ref")
@@ -274,6 +286,8 @@ class Options:
 def run_scene(bench: BenchScene, options: Options) -> SceneResult:
     scene = bench.build(options.size)
     folder = scene_folder(scene, bench.name)
+    if bench.blend is not None:  # Cycles renders the Blender scene itself
+        shutil.copyfile(bench.blend(options.size), folder / "scene.blend")
     print(f"{bench.name}: {bench.description} ({folder.name})", flush=True)
     haze_ref = haze_reference(scene, folder, options.reference_target, options.reference_time,
                               options.workers)

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from pathlib import Path
 
 from renderer.scene import Medium, Mesh, Scene
 
@@ -18,6 +19,9 @@ class BenchScene:
     # majorant grid, equiangular: the renderer's defaults
     settings: dict[str, dict[str, object]]
     description: str
+    # For a scene built in Blender (bench/blend_scenes.py): size -> its .blend, which Cycles
+    # renders as it is; None: Cycles renders the Haze scene rebuilt by tools/cycles_reference.
+    blend: Callable[[int], Path] | None = None
 
 
 def _cornell(size: int) -> Scene:
@@ -61,6 +65,18 @@ def _chromatic(size: int) -> Scene:
     return scene
 
 
+BLEND_BOUNCES = 3
+
+
+def _built_in_blender(name: str, description: str) -> BenchScene:
+    """examples/blender_gallery's scene `name`: Haze renders its export, Cycles the .blend."""
+    from .blend_scenes import blend_file, blend_scene
+
+    return BenchScene(name, lambda size: blend_scene(name, size, BLEND_BOUNCES), {"default": {}},
+                      f"{description}, max_bounces {BLEND_BOUNCES}",
+                      blend=lambda size: blend_file(name, size, BLEND_BOUNCES))
+
+
 NO_EQUIANGULAR = {"equiangular": False}
 UNIFORM = {"distance_sampling": "uniform"}
 SCENES: dict[str, BenchScene] = {s.name: s for s in (
@@ -75,6 +91,10 @@ SCENES: dict[str, BenchScene] = {s.name: s for s in (
     BenchScene("chromatic", _chromatic, {"default": {}, "uniform": UNIFORM, "no-equiangular": NO_EQUIANGULAR},
                f"box of sigma_t {CHROMATIC_SIGMA_T}, albedo {CHROMATIC_ALBEDO} in the Cornell box, "
                "max_bounces 16"),
+    _built_in_blender("textured_box", "Cornell box built in Blender: checker/noise Principled floor, image "
+                      "wall, noise-marbled cube"),
+    _built_in_blender("hdri", "floor, diffuse and rough metal balls under an HDRI with a 2x2-pixel sun, "
+                      "built in Blender"),
 )}
 SETTING_NOTES = {
     "default": "ratio tracking, spectral MIS, majorant grid, equiangular (the defaults)",

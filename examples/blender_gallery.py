@@ -19,6 +19,12 @@ the same ones). Scenes (figures of seed/volumetric-path-tracing.txt):
   cloud                                     Fig. 2's idea: a cloud imported from a pbrt-v3
                                             'heterogeneous' medium file, under sun and sky
 
+and two scenes whose look comes from shader nodes (examples/blender_materials.py):
+
+  textured_box                              the Cornell box with a checker/noise Principled
+                                            floor, an image on the back wall, a marbled cube
+  hdri                                      two balls on a floor under an HDRI with a small sun
+
 Coordinates: Blender's z is up; the Cornell box of examples/blender_cornell.py spans x, y in
 [-1, 1] and z in [0, 2], seen from -y. Positions from examples/media_scenes.py (y up, box
 [-1, 1]^3, camera on +z) map by (x, y, z) -> (x, -z, y + 1).
@@ -42,6 +48,7 @@ for _path in (REPO, REPO / "examples"):
         sys.path.insert(0, str(_path))
 
 import blender_cornell as C  # noqa: E402
+import blender_materials as M  # noqa: E402
 
 from addon.volume_grids import gaussian_smoke_density, read_pbrt, smoke_ball_density, write_pbrt  # noqa: E402
 from examples.scenes import FIG1_SIGMA_A, FIG1_SIGMA_S, icosphere  # noqa: E402
@@ -53,7 +60,7 @@ from examples.scenes import FIG1_SIGMA_A, FIG1_SIGMA_S, icosphere  # noqa: E402
 OUT = REPO / "out" / "blender_gallery"
 PREVIEW_SAMPLES = {  # samples per pixel at the preview size: each scene well under 2 minutes
     "fog_isotropic": 512, "fog_backward": 512, "fog_forward": 512, "smoke_ball": 256, "yellow_smoke": 256,
-    "fire_ball": 256, "underwater": 512, "cloud": 128,
+    "fire_ball": 256, "underwater": 512, "cloud": 128, "textured_box": 256, "hdri": 256,
 }
 MAX_BOUNCES = {"fog_isotropic": 4, "fog_backward": 4, "fog_forward": 4}  # Fig. 1's depth; others 16
 MEDIA_BOUNCES = 16
@@ -285,6 +292,8 @@ def build(name: str, size: int, folder: Path) -> bpy.types.Scene:
         "fire_ball": lambda: fire_ball(size, folder),
         "underwater": lambda: underwater(size),
         "cloud": lambda: cloud(size, folder),
+        "textured_box": lambda: use_haze(M.textured_cornell(size), size, 3),
+        "hdri": lambda: use_haze(M.hdri_scene(size, folder), size, 3),
     }
     return builders[name]()
 

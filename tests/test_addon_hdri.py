@@ -36,67 +36,13 @@ SAMPLES = {"EQUIRECTANGULAR": (32, 128), "MIRROR_BALL": (64, 256)}
 PROJECTIONS = tuple(SAMPLES)
 
 BODY = rf'''
-import math
+import os
 import time
-import bpy
-import numpy as np
 import bpy_helpers as H
-import blender_cornell as C
-from renderer.imageio import write_exr
+import blender_materials as M
 
 SIZE = {SIZE}
 RUNS = {RUNS}
-MAP_W, MAP_H = 256, 128
-SUN_ROW, SUN_COL = 96, 40  # from the bottom: about 45 degrees up
-
-
-def sky_pixels():
-    v = (np.arange(MAP_H) + 0.5) / MAP_H
-    u = (np.arange(MAP_W) + 0.5) / MAP_W
-    z = -np.cos(math.pi * v)
-    sky = np.clip(z, 0.0, None)[:, None] * (1.0 + 0.4 * np.sin(2 * math.pi * u))[None, :]
-    rgba = np.ones((MAP_H, MAP_W, 4), np.float32)
-    rgba[..., 0] = 0.06 + 0.25 * sky
-    rgba[..., 1] = 0.05 + 0.4 * sky
-    rgba[..., 2] = 0.04 + 0.8 * sky
-    rgba[SUN_ROW:SUN_ROW + 2, SUN_COL:SUN_COL + 2, :3] = (900.0, 800.0, 650.0)
-    return rgba
-
-
-def hdri_world(scene, path, projection):
-    # Written as an artist's HDRI arrives: a linear EXR (scanlines top-down), loaded as
-    # Linear Rec.709. (Saving a generated float image from Blender instead writes it
-    # display-encoded and tags it sRGB, which Cycles and Blender then decode differently.)
-    write_exr(path, sky_pixels()[::-1, :, :3])
-    world = bpy.data.worlds.new("HDRI")
-    H.ensure_nodes(world)
-    nodes, links = world.node_tree.nodes, world.node_tree.links
-    background = nodes["Background"]
-    background.inputs["Strength"].default_value = 1.5
-    texture = nodes.new("ShaderNodeTexEnvironment")
-    texture.image = bpy.data.images.load(path)
-    texture.image.colorspace_settings.name = "Linear Rec.709"
-    texture.projection = projection
-    mapping = nodes.new("ShaderNodeMapping")
-    mapping.inputs["Rotation"].default_value = (0.0, 0.0, math.radians(30.0))
-    coords = nodes.new("ShaderNodeTexCoord")
-    links.new(coords.outputs["Generated"], mapping.inputs["Vector"])
-    links.new(mapping.outputs["Vector"], texture.inputs["Vector"])
-    links.new(texture.outputs["Color"], background.inputs["Color"])
-    scene.world = world
-
-
-def build(folder, projection):
-    scene = C.clear_scene()
-    hdri_world(scene, os.path.join(folder, "sky.exr"), projection)
-    H.floor_plane("Floor", 3.0, C.diffuse_material("Floor", (0.6, 0.6, 0.6)))
-    H.uv_sphere("Ball", (-0.6, 0.3, 0.5), 0.5, C.diffuse_material("Ball", (0.7, 0.4, 0.3)))
-    H.uv_sphere("Metal", (0.7, 0.0, 0.45), 0.45, H.principled_material(
-        "Metal", Base_Color=(0.9, 0.9, 0.9), Metallic=1.0, Roughness=0.3, distribution="GGX"))
-    C.add_camera(scene, (0.0, -4.5, 1.3), (80.0, 0.0, 0.0), lens=30.0)
-    scene.render.resolution_x = scene.render.resolution_y = SIZE
-    scene.render.resolution_percentage = 100
-    return scene
 
 
 def main():
@@ -105,7 +51,7 @@ def main():
     for projection, (cycles_samples, haze_samples) in {SAMPLES!r}.items():
         folder = os.path.join(os.getcwd(), projection)
         os.makedirs(folder, exist_ok=True)
-        scene = build(folder, projection)
+        scene = M.hdri_scene(SIZE, folder, projection)
         paths = {{"cycles": [], "haze": []}}
         seconds = {{}}
         for engine, samples, configure in (("cycles", cycles_samples, H.configure_cycles),

@@ -11,6 +11,9 @@ wall time of each render call (scene sync, BVH build, sampling, EXR write) goes 
 OUT_DIR/timings.json. A 1-sample warm-up render first loads Cycles' kernels, so the timings
 are those of a Blender session that has rendered before.
 
+A .blend instead of a scene folder (tools/blend_scene.py writes one beside its export) is
+rendered as it is, with Cycles configured the same way and --max-bounces as the limit.
+
 Supported: diffuse lobes, front/back/both-sided emission, homogeneous media (world or
 inside closed meshes) and grid media of density only. Anything else raises, so a benchmark
 never silently compares different scenes.
@@ -45,8 +48,8 @@ from renderer.scenefile import load_scene  # noqa: E402
 ISOLATED = "HAZE_CYCLES_ISOLATED"
 
 
-def isolate_blender() -> None:
-    """Re-run this script with private HOME / Blender user folders (bpy_helpers' environment),
+def isolate_blender(script: str = __file__) -> None:
+    """Re-run `script` with private HOME / Blender user folders (bpy_helpers' environment),
     so nothing of the developer's own Blender setup is read or changed."""
     if os.environ.get(ISOLATED):
         return
@@ -54,7 +57,7 @@ def isolate_blender() -> None:
 
     env = blender_environment(Path(tempfile.mkdtemp(prefix="haze-cycles-")), None)
     env[ISOLATED] = "1"
-    os.execve(sys.executable, [sys.executable, __file__, *sys.argv[1:]], env)
+    os.execve(sys.executable, [sys.executable, script, *sys.argv[1:]], env)
 
 
 # ---------------------------------------------------------------------------- bpy building
@@ -316,11 +319,13 @@ def timed_render(scene, path: Path, samples: int, max_bounces: int, seed: int, t
 
 def parse_arguments(argv: list[str]) -> argparse.Namespace:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("scene", type=Path, help="a Haze scene folder (scene.json + arrays)")
+    parser.add_argument("scene", type=Path, help="a Haze scene folder (scene.json + arrays), or a .blend")
     parser.add_argument("out", type=Path)
     parser.add_argument("--samples", type=int, nargs="+", required=True)
     parser.add_argument("--seeds", type=int, nargs="+", default=[1])
     parser.add_argument("--threads", type=int, default=2)
+    parser.add_argument("--max-bounces", type=int, default=0,
+                        help="for a .blend (a scene folder has its own)")
     parser.add_argument("--time-limit", type=float, default=0.0,
                         help="per seed: skip larger sample counts once a render took this long")
     return parser.parse_args(argv)
@@ -329,10 +334,15 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
 def main(argv: list[str]) -> int:
     isolate_blender()
     arguments = parse_arguments(argv)
-    haze = load_scene(arguments.scene)
-    scene = build_scene(haze)
+    if arguments.scene.suffix == ".blend":  # an artist's scene as it is (tools/blend_scene.py)
+        import bpy
+
+        bpy.ops.wm.open_mainfile(filepath=str(arguments.scene))
+        scene, bounces = bpy.context.scene, arguments.max_bounces
+    else:
+        haze = load_scene(arguments.scene)
+        scene, bounces = build_scene(haze), haze.integrator.max_bounces
     arguments.out.mkdir(parents=True, exist_ok=True)
-    bounces = haze.integrator.max_bounces
     warmup = timed_render(scene, arguments.out / "warmup.exr", 1, bounces, 0, arguments.threads)
     renders = []
     for seed in arguments.seeds:
