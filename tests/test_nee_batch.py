@@ -20,7 +20,7 @@ from renderer.integrator import nee_batch as NB
 from renderer.integrator.dims import SEG_FREE_FLIGHT, SEG_LIGHT, SEG_VERTEX
 from renderer.integrator.wavefront import Tracer
 from renderer.kernels import JIT_OPTIONS
-from renderer.kernels.rng import path_key, uniform
+from renderer.kernels.rng import hashed_uniform, path_key
 from renderer.kernels.vecmath import dot, madd, max3, mul, scale
 from renderer.lights.sample import connect_light, light_point
 from renderer.media.homogeneous import segment
@@ -52,11 +52,13 @@ def _scalar(lt, md, stack, o, d, tmax, beta, light, g, use_eq, seed, mis, out):
         oo = (o[j, 0], o[j, 1], o[j, 2])
         dd = (d[j, 0], d[j, 1], d[j, 2])
         bb = (beta[j, 0], beta[j, 1], beta[j, 2])
-        lp = light_point(lt, light[j], uniform(key, SEG_LIGHT + 1), uniform(key, SEG_LIGHT + 2))
+        lp = light_point(lt, light[j], hashed_uniform(key, SEG_LIGHT + 1),
+                         hashed_uniform(key, SEG_LIGHT + 2))
         t, wn, dim = nee_vertex_on(segment(md, stack, tmax[j]), oo, dd, tmax[j], lp, bb, key, SEG_VERTEX,
                                    use_eq[j], False)
         x = (oo[0] + t * dd[0], oo[1] + t * dd[1], oo[2] + t * dd[2])
-        wi, dist, le, pdf, _ = connect_light(lt, light[j], lp, x, uniform(key, dim), uniform(key, dim + 1))
+        wi, dist, le, pdf, _ = connect_light(lt, light[j], lp, x, hashed_uniform(key, dim),
+                                             hashed_uniform(key, dim + 1))
         p_light = pdf * lt[7][light[j]]
         ph = hg_eval(g, dot(dd, wi))
         w = p_light * p_light / (p_light * p_light + ph * ph) if mis else 1.0
@@ -86,14 +88,14 @@ def _scalar_path(md, stack, o, d, tmax, beta, roulette, seed, out):
         if max3(bb) <= 0.0:
             state = NB.DEAD
         elif scattered:
-            wi, pw, pdf = sample_phase(md, stack, y, dd, uniform(key, dim), uniform(key, dim + 1),
-                                       uniform(key, dim + 2))
+            wi, pw, pdf = sample_phase(md, stack, y, dd, hashed_uniform(key, dim),
+                                       hashed_uniform(key, dim + 1), hashed_uniform(key, dim + 2))
             bb = mul(bb, pw)
             dim += 3
             state = NB.SCATTERED
             if roulette[j]:
                 keep = min(1.0, max3(bb))
-                if keep <= 0.0 or uniform(key, dim) >= keep:
+                if keep <= 0.0 or hashed_uniform(key, dim) >= keep:
                     state = NB.DEAD
                 else:
                     bb = scale(bb, 1.0 / keep)

@@ -16,7 +16,7 @@ its segment stays PATH_ACTIVE for the surface stage.
 import numpy as np
 
 from ..kernels import inline_kernel, kernel
-from ..kernels.rng import uniform
+from ..kernels.rng import hashed_uniform
 from ..kernels.vecmath import add, madd, max3, mul, scale
 from ..lights.environment import connect_light_env
 from ..lights.sample import light_has_point, light_pmf, light_point, pick_light
@@ -93,8 +93,8 @@ def _medium_nee(ps, i, md, lt, env, cfg, x, d, beta, key, dim, sh, s, light, lp,
     """Next-event estimation from medium point x (with path weight `weight` to reach it).
     Uses dimensions dim .. dim + MEDIUM_NEE_DIMS - 1 whether or not it emits a shadow ray
     (so the batched next-event vertex, nee_batch, keeps the same random numbers)."""
-    wi, dist, le, pdf, is_delta = _connect_light(lt, env, light, lp, x, uniform(key, dim),
-                                                 uniform(key, dim + 1))
+    wi, dist, le, pdf, is_delta = _connect_light(lt, env, light, lp, x, hashed_uniform(key, dim),
+                                                 hashed_uniform(key, dim + 1))
     stack = ps.stack[i]
     p_light = pdf * light_pmf(lt, light)
     if p_light <= 0.0 or max3(le) <= 0.0:
@@ -185,7 +185,7 @@ def shade_media(n, ps, prim, lt, env, md, cfg, L, sh, nb, grid_md):
             # Decoupled next-event vertex (as Cycles): a point on the segment chosen by
             # equiangular/free-flight MIS toward a light point, independent of where the
             # path itself goes on.
-            light = pick_light(cdf, uniform(key, dim))
+            light = pick_light(cdf, hashed_uniform(key, dim))
             use_eq = cfg[CFG_EQUIANGULAR] != 0 and light_has_point(lt, light)
             if batched and nee_batch.qualifies(lt, light, stack):
                 # The whole segment (this vertex, the free flight, the phase sample and
@@ -204,7 +204,7 @@ def shade_media(n, ps, prim, lt, env, md, cfg, L, sh, nb, grid_md):
                     s = _flush_nee_batch(queued, nb, ps, cfg, sh, s)
                     queued = np.int64(0)
                 continue
-            lp = light_point(lt, light, uniform(key, dim + 1), uniform(key, dim + 2))
+            lp = light_point(lt, light, hashed_uniform(key, dim + 1), hashed_uniform(key, dim + 2))
             dim += 3
             # Shared by the next-event vertex and the path's own free flight.
             seg = segment(md, stack, t_hit)
@@ -236,13 +236,13 @@ def shade_media(n, ps, prim, lt, env, md, cfg, L, sh, nb, grid_md):
             continue
         x = madd(o, d, t)
         if not did_nee and sampling != SAMPLING_BSDF and cdf.shape[0] > 1:
-            light = pick_light(cdf, uniform(key, dim))
-            lp = light_point(lt, light, uniform(key, dim + 1), uniform(key, dim + 2))
+            light = pick_light(cdf, hashed_uniform(key, dim))
+            lp = light_point(lt, light, hashed_uniform(key, dim + 1), hashed_uniform(key, dim + 2))
             dim += 3
             s = _medium_nee(ps, i, md, lt, env, cfg, x, d, beta, key, dim, sh, s, light, lp, (1.0, 1.0, 1.0))
             dim += MEDIUM_NEE_DIMS
-        wi, pw, ph_pdf = sample_phase(md, stack, x, d, uniform(key, dim), uniform(key, dim + 1),
-                                      uniform(key, dim + 2))
+        wi, pw, ph_pdf = sample_phase(md, stack, x, d, hashed_uniform(key, dim), hashed_uniform(key, dim + 1),
+                                      hashed_uniform(key, dim + 2))
         dim += 3
         _scatter_in_medium(ps, i, mul(beta, pw), depth, x, wi, ph_pdf)
         alive, dim = russian_roulette(ps, i, key, dim, cfg[CFG_RR_DEPTH])

@@ -40,7 +40,7 @@ import numpy as np
 
 from renderer.kernels import inline_kernel, kernel
 from renderer.kernels import simdmath as sm
-from renderer.kernels.rng import uniform
+from renderer.kernels.rng import hashed_uniform
 from renderer.kernels.vecmath import dot
 from renderer.layout import Layout
 from renderer.lights.sample import connect_triangle_simd, triangle_point
@@ -203,7 +203,7 @@ def record(nb, j, path, key, dim, lt, light, o, d, tmax, beta, sigma_s, sigma_t,
 @inline_kernel
 def _u(q_key, q_dim, j, offset):
     """The request's uniform number at dimension (its segment's start + offset)."""
-    return uniform(q_key[j], q_dim[j] + offset)
+    return hashed_uniform(q_key[j], q_dim[j] + offset)
 
 
 # The four loops below are the batch's driver: each reads a request's rows, calls the

@@ -3,12 +3,12 @@
 Both act on a whole medium stack (see stack.py) along a world-space ray o + t d with unit d.
 Stacks of homogeneous media use Beer's law in closed form; a stack with any grid medium is
 tracked with null collisions against a majorant walked through coarse majorant grids
-(tracking.py). Random numbers come from uniform(key, dim); every function returns the
+(tracking.py). Random numbers come from hashed_uniform(key, dim); every function returns the
 advanced dimension counter.
 """
 
 from renderer.kernels import inline_kernel, kernel
-from renderer.kernels.rng import uniform
+from renderer.kernels.rng import hashed_uniform
 from renderer.media.homogeneous import (
     beer,
     emission_integral,
@@ -55,8 +55,8 @@ def sample_segment(mt, stack, seg, tmax, p, key, dim):
         # sampled collision could only absorb the path, adding noise and no information).
         t, scattered, weight = tmax, False, tr_end
     else:
-        t, scattered, weight = free_flight_segment(ss, st, tr_end, tmax, p, uniform(key, dim),
-                                                   uniform(key, dim + 1))
+        t, scattered, weight = free_flight_segment(ss, st, tr_end, tmax, p, hashed_uniform(key, dim),
+                                                   hashed_uniform(key, dim + 1))
     return t, scattered, weight, segment_emission(mt, stack, st, tmax), dim + 2
 
 

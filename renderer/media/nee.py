@@ -19,7 +19,7 @@ segments (renderer.integrator.nee_batch).
 """
 
 from renderer.kernels import inline_kernel, kernel
-from renderer.kernels.rng import uniform
+from renderer.kernels.rng import hashed_uniform
 from renderer.media.equiangular import (
     equiangular_frame,
     equiangular_frame_simd,
@@ -54,9 +54,9 @@ def nee_vertex_on(seg, o, d, tmax, light_p, throughput, key, dim, use_equiangula
     own free-flight sampling on the same segment can reuse them."""
     _, ss, st, _, miss = seg
     p = channel_probabilities(throughput, uniform_channel)
-    u_technique = uniform(key, dim)
-    u_channel = uniform(key, dim + 1)
-    u_t = uniform(key, dim + 2)
+    u_technique = hashed_uniform(key, dim)
+    u_channel = hashed_uniform(key, dim + 1)
+    u_t = hashed_uniform(key, dim + 2)
     dim += 3
     if not (ss[0] > 0.0 or ss[1] > 0.0 or ss[2] > 0.0) or not tmax > 0.0:
         return 0.0, (0.0, 0.0, 0.0), dim

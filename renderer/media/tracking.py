@@ -41,7 +41,7 @@ import numpy as np
 
 from renderer.kernels import fastmath as fm
 from renderer.kernels import inline_kernel, kernel
-from renderer.kernels.rng import uniform
+from renderer.kernels.rng import hashed_uniform
 from renderer.media.emission import stack_emission
 from renderer.media.grid import medium_density, to_unit_point, to_unit_vector
 from renderer.media.homogeneous import optical_depth
@@ -195,7 +195,7 @@ def _roulette(f, key, dim):
     if m <= 0.0:
         return f, False, dim
     survive = m / RR_THRESHOLD
-    u = uniform(key, dim)
+    u = hashed_uniform(key, dim)
     dim += 1
     if u >= survive:
         return f, False, dim
@@ -218,7 +218,7 @@ def delta_track(mt, stack, o, d, t0, t1, p, key, dim, with_emission, rows):
     q = (1.0 if p[0] > 0.0 else 0.0, 1.0 if p[1] > 0.0 else 0.0, 1.0 if p[2] > 0.0 else 0.0)
     q = _scaled(q, _mix(p, q))
     le0 = le1 = le2 = 0.0
-    c = pick_channel(p, uniform(key, dim))
+    c = pick_channel(p, hashed_uniform(key, dim))
     dim += 1
     t = t0
     collisions = 0
@@ -227,7 +227,7 @@ def delta_track(mt, stack, o, d, t0, t1, p, key, dim, with_emission, rows):
         end = min(end, t1)
         if ex >= 0:  # regular tracking across the piece
             m, uo, ud, st_grid = _unit_ray(mt, rows, ex, o, d)
-            depth = -fm.log1p(-uniform(key, dim))
+            depth = -fm.log1p(-hashed_uniform(key, dim))
             dim += 1
             t, hit, tau = sample_flight(mt, m, uo, ud, t, end, depth, c, st_grid, hom_sigma_t)
             q = _attenuated(q, tau, p)
@@ -244,7 +244,7 @@ def delta_track(mt, stack, o, d, t0, t1, p, key, dim, with_emission, rows):
         while True:
             dt = math.inf
             if mu[c] > 0.0:
-                dt = -fm.log1p(-uniform(key, dim)) / mu[c]
+                dt = -fm.log1p(-hashed_uniform(key, dim)) / mu[c]
                 dim += 1
             if t + dt >= end or collisions >= MAX_COLLISIONS:
                 q = _decay(q, mu, end - t)
@@ -263,7 +263,7 @@ def delta_track(mt, stack, o, d, t0, t1, p, key, dim, with_emission, rows):
                 le0 += e[0] * q[0] / denom
                 le1 += e[1] * q[1] / denom
                 le2 += e[2] * q[2] / denom
-            u = uniform(key, dim)
+            u = hashed_uniform(key, dim)
             dim += 1
             if u * mu[c] < st[c]:
                 denom = p[0] * q[0] * st[0] + p[1] * q[1] * st[1] + p[2] * q[2] * st[2]
@@ -286,7 +286,7 @@ def ratio_track(mt, stack, o, d, t0, t1, p, key, dim, rows):
     hom_sigma_t, _, n = _start_walk(mt, stack, o, d, t0, rows)
     f = (1.0, 1.0, 1.0)
     q = (1.0, 1.0, 1.0)
-    c = pick_channel(p, uniform(key, dim))
+    c = pick_channel(p, hashed_uniform(key, dim))
     dim += 1
     t = t0
     collisions = 0
@@ -306,7 +306,7 @@ def ratio_track(mt, stack, o, d, t0, t1, p, key, dim, rows):
         while True:
             dt = math.inf
             if mu[c] > 0.0:
-                dt = -fm.log1p(-uniform(key, dim)) / mu[c]
+                dt = -fm.log1p(-hashed_uniform(key, dim)) / mu[c]
                 dim += 1
             if t + dt >= end or collisions >= MAX_COLLISIONS:
                 f = _decay(f, mu, end - t)
