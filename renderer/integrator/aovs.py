@@ -18,6 +18,12 @@ denoising_passes.h in the bpy 5.0 source):
   the path looks further. Emission or background found before that adds
   feature throughput x radiance x MIS weight to the albedo (Cycles' light_passes.h), and the
   background ends the features.
+* Light passes by category (Cycles' light_passes.h): a path's first scattering event sets
+  its category (PATH_RAY_VOLUME_PASS in a volume). Light it brings to the camera after
+  that goes to the category's Direct pass when it comes from that first vertex (its
+  next-event ray, or emission the path found right after it, at depth 1) and to its
+  Indirect pass otherwise. Only the volume's category is written (Volume Direct and
+  Indirect); a shadow ray carries its column (Shadows.col) from where it was emitted.
 Lobe albedos are the lobe's weight x colour (Cycles' bsdf_albedo also folds in Fresnel for
 microfacet lobes; Haze's plastic and rough conductor are not corrected for it).
 """
@@ -29,7 +35,7 @@ from ..bsdfs.layout import L_COLOR, L_IOR, L_KIND, L_ROUGH, L_SIDES, L_WEIGHT, M
 from ..bsdfs.material import _lobe_selection
 from ..bsdfs.spec_albedo import spec_albedo
 from ..camera import ORTHOGRAPHIC, PROJ_KIND
-from ..kernels import kernel
+from ..kernels import inline_kernel, kernel
 from .paths import (
     AOV_DALBEDO,
     AOV_DATA_DONE,
@@ -40,12 +46,18 @@ from .paths import (
     AOV_FEAT_DEPTH,
     AOV_FEAT_DONE,
     AOV_FEAT_T,
+    AOV_FIRST_KIND,
     AOV_GLOSSY_COLOR,
     AOV_HIT0,
     AOV_MIST,
     AOV_NORMAL,
     AOV_POSITION,
     AOV_SAMPLE0,
+    AOV_VOLUME_DIRECT,
+    AOV_VOLUME_INDIRECT,
+    KIND_NONE,
+    KIND_VOLUME,
+    NO_PASS,
 )
 
 ROUGH_ALPHA = 0.075  # Cycles: a closure with alpha_x alpha_y > 0.075^2 counts as diffuse-like
@@ -70,6 +82,44 @@ def aov_emission_pass(L, pid, beta, le, w):
     Background pass, not written)."""
     for c in range(3):
         L[pid, AOV_EMISSION + c] += beta[c] * le[c] * w
+
+
+@inline_kernel
+def _category_column(kind, direct):
+    """The light pass column of category `kind` (KIND_*), Direct or Indirect."""
+    if kind == KIND_VOLUME:
+        return AOV_VOLUME_DIRECT if direct else AOV_VOLUME_INDIRECT
+    return NO_PASS
+
+
+@inline_kernel
+def shadow_pass_column(L, pid, depth, in_volume, light_aovs):
+    """The light pass a next-event ray from a scattering vertex at `depth` (in a volume or
+    on a surface) also adds to: the vertex's own category's Direct pass at the path's first
+    scattering event, else its first event's category's Indirect pass."""
+    if not light_aovs:
+        return NO_PASS
+    if depth == 0:
+        return _category_column(KIND_VOLUME if in_volume else KIND_NONE, True)
+    return _category_column(L[pid, AOV_FIRST_KIND], False)
+
+
+@inline_kernel
+def aov_first_scatter(L, pid, depth, in_volume):
+    """The path scattered (its depth-th event): the first one sets its category."""
+    if depth == 0 and in_volume:
+        L[pid, AOV_FIRST_KIND] = KIND_VOLUME
+
+
+@kernel
+def aov_scattered_emission(L, pid, depth, beta, le, w):
+    """Emission or background radiance le x MIS weight w that a path found after `depth`
+    >= 1 scattering events: its category's Direct pass right after the first (depth 1),
+    Indirect later."""
+    col = _category_column(L[pid, AOV_FIRST_KIND], depth == 1)
+    if col != NO_PASS:
+        for c in range(3):
+            L[pid, col + c] += beta[c] * le[c] * w
 
 
 @kernel
