@@ -30,10 +30,11 @@ NOISY_IMAGE = PassSpec("Noisy Image", "RGBA", "COLOR")
 DIFFUSE_COLOR = PassSpec("Diffuse Color", "RGB", "COLOR")
 GLOSSY_COLOR = PassSpec("Glossy Color", "RGB", "COLOR")
 EMISSION = PassSpec("Emission", "RGB", "COLOR")
+TRANSMISSION_COLOR = PassSpec("Transmission Color", "RGB", "COLOR")
 VOLUME_DIRECT = PassSpec("Volume Direct", "RGB", "COLOR")
 VOLUME_INDIRECT = PassSpec("Volume Indirect", "RGB", "COLOR")
 # renderer film.light_aovs
-LIGHT_PASSES = (DIFFUSE_COLOR, GLOSSY_COLOR, EMISSION, VOLUME_DIRECT, VOLUME_INDIRECT)
+LIGHT_PASSES = (DIFFUSE_COLOR, GLOSSY_COLOR, TRANSMISSION_COLOR, EMISSION, VOLUME_DIRECT, VOLUME_INDIRECT)
 
 # The View Layer toggles of the passes Haze writes, in Cycles' order (list_render_passes):
 # (whose property: "view_layer" or "cycles" = view_layer.cycles, its name, the pass).
@@ -45,6 +46,7 @@ TOGGLES = (
     ("view_layer", "use_pass_normal", NORMAL),
     ("view_layer", "use_pass_diffuse_color", DIFFUSE_COLOR),
     ("view_layer", "use_pass_glossy_color", GLOSSY_COLOR),
+    ("view_layer", "use_pass_transmission_color", TRANSMISSION_COLOR),
     ("cycles", "use_pass_volume_direct", VOLUME_DIRECT),
     ("cycles", "use_pass_volume_indirect", VOLUME_INDIRECT),
     ("view_layer", "use_pass_emit", EMISSION),

@@ -14,6 +14,7 @@ and values (kernel/film/read.h):
   Emission          mean emission the camera path found before scattering (film.light_aovs)
   Diffuse Color     mean throughput x diffuse albedo over the hits before scattering
   Glossy Color      the same for the glossy lobes' albedo
+  Transmission Color  the same for the glass lobes' refraction albedo
   Volume Direct     mean light the camera path brought back through a first scattering
                     event in a volume, by that vertex's next-event ray or the emission
                     found right after it (Cycles' PASS_VOLUME_DIRECT)
@@ -40,6 +41,7 @@ from .integrator.paths import (
     AOV_MIST,
     AOV_NORMAL,
     AOV_POSITION,
+    AOV_TRANSMISSION_COLOR,
     AOV_VOLUME_DIRECT,
     AOV_VOLUME_INDIRECT,
     LIGHT_AOV_FIRST,
@@ -49,7 +51,8 @@ from .scene import Camera
 DATA_PASSES = ("Depth", "Position", "Normal", "Mist")
 DENOISING_PASSES = ("Denoising Normal", "Denoising Albedo")
 LIGHT_COLUMNS = {"Emission": AOV_EMISSION, "Diffuse Color": AOV_DIFFUSE_COLOR,
-                 "Glossy Color": AOV_GLOSSY_COLOR, "Volume Direct": AOV_VOLUME_DIRECT,
+                 "Glossy Color": AOV_GLOSSY_COLOR, "Transmission Color": AOV_TRANSMISSION_COLOR,
+                 "Volume Direct": AOV_VOLUME_DIRECT,
                  "Volume Indirect": AOV_VOLUME_INDIRECT}
 LIGHT_PASSES = tuple(LIGHT_COLUMNS)  # need film.light_aovs
 MISS_DEPTH = 1e10  # Cycles' Depth where the camera saw the world

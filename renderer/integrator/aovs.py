@@ -30,7 +30,17 @@ microfacet lobes; Haze's plastic and rough conductor are not corrected for it).
 
 import math
 
-from ..bsdfs import CONDUCTOR, DIFFUSE, PLASTIC, ROUGH_CONDUCTOR, SIDE_BACK, SIDE_FRONT, TRANSPARENT
+from ..bsdfs import (
+    CONDUCTOR,
+    DIELECTRIC,
+    DIFFUSE,
+    PLASTIC,
+    ROUGH_CONDUCTOR,
+    SIDE_BACK,
+    SIDE_FRONT,
+    TRANSPARENT,
+)
+from ..bsdfs.fresnel import fresnel_dielectric
 from ..bsdfs.layout import L_COLOR, L_IOR, L_KIND, L_ROUGH, L_SIDES, L_WEIGHT, M_COUNT, M_FIRST
 from ..bsdfs.material import _lobe_selection
 from ..bsdfs.spec_albedo import spec_albedo
@@ -53,6 +63,7 @@ from .paths import (
     AOV_NORMAL,
     AOV_POSITION,
     AOV_SAMPLE0,
+    AOV_TRANSMISSION_COLOR,
     AOV_VOLUME_DIRECT,
     AOV_VOLUME_INDIRECT,
     KIND_NONE,
@@ -124,13 +135,17 @@ def aov_scattered_emission(L, pid, depth, beta, le, w):
 
 @kernel
 def aov_colors(L, pid, mt, m, front, mu, beta):
-    """Diffuse and Glossy Color at a hit before the path scattered (Cycles writes them at
-    every such hit: transparent surfaces in front add theirs): beta x the diffuse-like and
-    glossy lobes' albedo for the view direction with cosine mu. Diffuse lobes give weight x
+    """Diffuse, Glossy and Transmission Color at a hit before the path scattered (Cycles
+    writes them at every such hit: transparent surfaces in front add theirs): beta x the
+    diffuse-like, glossy and transmission lobes' albedo for the view direction with cosine
+    mu. Diffuse lobes give weight x
     colour; the Principled base its share left by the layer, colour x (1 - E(mu)), and the
     layer E(mu) (Cycles' tabulated estimate, renderer.bsdfs.spec_albedo); mirrors and GGX
-    reflection weight x colour (Cycles' Glossy BSDF, no Fresnel). Glass and transparent
-    lobes go to neither (Cycles puts glass's reflectance in Glossy Color: not written)."""
+    reflection weight x colour (Cycles' Glossy BSDF, no Fresnel); glass its refraction,
+    weight x (1 - F(mu)) x its refraction tint (Cycles' bsdf_albedo of a smooth glass
+    closure: exact Fresnel). Transparent lobes go to none (Cycles counts them as no
+    transmission closure), and glass's reflectance, which Cycles adds to Glossy Color,
+    is not written."""
     mats, lobes = mt
     start = mats[m, M_FIRST]
     side = SIDE_FRONT if front else SIDE_BACK
@@ -153,6 +168,12 @@ def aov_colors(L, pid, mt, m, front, mu, beta):
             for c in range(3):
                 a = float(lobes[j, L_WEIGHT + c]) * float(lobes[j, L_COLOR + c])
                 L[pid, AOV_GLOSSY_COLOR + c] += beta[c] * a
+        elif kind == DIELECTRIC:
+            ior = float(lobes[j, L_IOR])
+            t = 1.0 - fresnel_dielectric(mu, ior if front else 1.0 / max(ior, 1e-6))[0]
+            for c in range(3):
+                a = float(lobes[j, L_WEIGHT + c]) * float(lobes[j, L_COLOR + c])
+                L[pid, AOV_TRANSMISSION_COLOR + c] += beta[c] * a * t
 
 
 @kernel

@@ -52,9 +52,10 @@ AOV_DIFFUSE_COLOR = 29  # throughput x diffuse albedo at each hit before scatter
 AOV_GLOSSY_COLOR = 32  # throughput x glossy albedo at each hit before scattering
 AOV_VOLUME_DIRECT = 35  # light reaching the camera through a first scatter in a volume: its
 AOV_VOLUME_INDIRECT = 38  # next-event rays and the emission right after it; the rest of it
-LIGHT_AOV_COUNT = 15
-AOV_FIRST_KIND = 41  # scratch: how the path first scattered (KIND_*), set at that event
-L_COLUMNS_LIGHT_AOV = 42
+AOV_TRANSMISSION_COLOR = 41  # throughput x transmission albedo at each hit before scattering
+LIGHT_AOV_COUNT = 18
+AOV_FIRST_KIND = 44  # scratch: how the path first scattered (KIND_*), set at that event
+L_COLUMNS_LIGHT_AOV = 45
 # Cycles' render pass categories (PATH_RAY_SURFACE_PASS / VOLUME_PASS): what a path's first
 # scattering event was. Only the volume's passes are written, so surfaces leave KIND_NONE.
 KIND_NONE = 0.0
