@@ -30,7 +30,27 @@ NOISY_IMAGE = PassSpec("Noisy Image", "RGBA", "COLOR")
 DIFFUSE_COLOR = PassSpec("Diffuse Color", "RGB", "COLOR")
 GLOSSY_COLOR = PassSpec("Glossy Color", "RGB", "COLOR")
 EMISSION = PassSpec("Emission", "RGB", "COLOR")
-LIGHT_PASSES = (DIFFUSE_COLOR, GLOSSY_COLOR, EMISSION)  # renderer film.light_aovs
+TRANSMISSION_COLOR = PassSpec("Transmission Color", "RGB", "COLOR")
+VOLUME_DIRECT = PassSpec("Volume Direct", "RGB", "COLOR")
+VOLUME_INDIRECT = PassSpec("Volume Indirect", "RGB", "COLOR")
+# renderer film.light_aovs
+LIGHT_PASSES = (DIFFUSE_COLOR, GLOSSY_COLOR, TRANSMISSION_COLOR, EMISSION, VOLUME_DIRECT, VOLUME_INDIRECT)
+
+# The View Layer toggles of the passes Haze writes, in Cycles' order (list_render_passes):
+# (whose property: "view_layer" or "cycles" = view_layer.cycles, its name, the pass).
+# Denoising data and Noisy Image depend on more than one toggle (requested_passes).
+TOGGLES = (
+    ("view_layer", "use_pass_z", DEPTH),
+    ("view_layer", "use_pass_mist", MIST),
+    ("view_layer", "use_pass_position", POSITION),
+    ("view_layer", "use_pass_normal", NORMAL),
+    ("view_layer", "use_pass_diffuse_color", DIFFUSE_COLOR),
+    ("view_layer", "use_pass_glossy_color", GLOSSY_COLOR),
+    ("view_layer", "use_pass_transmission_color", TRANSMISSION_COLOR),
+    ("cycles", "use_pass_volume_direct", VOLUME_DIRECT),
+    ("cycles", "use_pass_volume_indirect", VOLUME_INDIRECT),
+    ("view_layer", "use_pass_emit", EMISSION),
+)
 
 
 def store_denoising_data(view_layer) -> bool:
@@ -41,26 +61,14 @@ def store_denoising_data(view_layer) -> bool:
 
 
 def requested_passes(scene, view_layer) -> list[PassSpec]:
-    """The passes Haze writes for this view layer, Combined first."""
-    passes = [COMBINED]
-    if getattr(view_layer, "use_pass_z", False):
-        passes.append(DEPTH)
-    if getattr(view_layer, "use_pass_mist", False):
-        passes.append(MIST)
-    if getattr(view_layer, "use_pass_position", False):
-        passes.append(POSITION)
-    if getattr(view_layer, "use_pass_normal", False):
-        passes.append(NORMAL)
+    """The passes Haze writes for this view layer, Combined first, then the toggled ones,
+    Noisy Image and the denoising data last."""
+    owners = {"view_layer": view_layer, "cycles": getattr(view_layer, "cycles", None)}
+    passes = [COMBINED] + [spec for owner, name, spec in TOGGLES if getattr(owners[owner], name, False)]
     if denoising_enabled(scene):
         passes.append(NOISY_IMAGE)
     if store_denoising_data(view_layer):
         passes += [DENOISING_NORMAL, DENOISING_ALBEDO]
-    if getattr(view_layer, "use_pass_diffuse_color", False):
-        passes.append(DIFFUSE_COLOR)
-    if getattr(view_layer, "use_pass_glossy_color", False):
-        passes.append(GLOSSY_COLOR)
-    if getattr(view_layer, "use_pass_emit", False):
-        passes.append(EMISSION)
     return passes
 
 

@@ -138,6 +138,10 @@ class HAZE_VIEWLAYER_PT_passes(HazeRenderPanel, bpy.types.Panel):
         column = layout.column(heading="Light", align=True)
         column.prop(view_layer, "use_pass_diffuse_color", text="Diffuse Color")
         column.prop(view_layer, "use_pass_glossy_color", text="Glossy Color")
+        column.prop(view_layer, "use_pass_transmission_color", text="Transmission Color")
+        if cycles is not None:
+            column.prop(cycles, "use_pass_volume_direct", text="Volume Direct")
+            column.prop(cycles, "use_pass_volume_indirect", text="Volume Indirect")
         column.prop(view_layer, "use_pass_emit", text="Emission")
 
 

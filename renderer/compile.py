@@ -105,7 +105,7 @@ class CompiledScene:
     # The environment map's tables (renderer.lights.environment_map); None for a constant
     # world, which then compiles and runs no map code.
     environment: tuple | None = None
-    light_aovs: bool = False  # and the light and colour passes' (Emission, Diffuse/Glossy Color)
+    light_aovs: bool = False  # and the light passes' (Emission, Diffuse/Glossy Color, Volume)
 
 
 def _merge_meshes(scene: Scene, material_index: dict[str, int], medium_index: dict[str, int]):

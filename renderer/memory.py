@@ -19,7 +19,7 @@ WORKER_BYTES_PER_PIXEL = 2 * FILM_BYTES_PER_PIXEL
 # The render passes' sums when the film has them (film.aovs): integrator.paths.AOV_COUNT
 # float64 columns (a constant here: importing the integrator would load numba).
 AOV_BYTES_PER_PIXEL = 15 * 8
-LIGHT_AOV_BYTES_PER_PIXEL = 9 * 8  # and integrator.paths.LIGHT_AOV_COUNT with film.light_aovs
+LIGHT_AOV_BYTES_PER_PIXEL = 18 * 8  # and integrator.paths.LIGHT_AOV_COUNT with film.light_aovs
 
 
 def render_memory_bytes(film: Film, workers: int) -> int:

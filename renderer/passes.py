@@ -14,6 +14,11 @@ and values (kernel/film/read.h):
   Emission          mean emission the camera path found before scattering (film.light_aovs)
   Diffuse Color     mean throughput x diffuse albedo over the hits before scattering
   Glossy Color      the same for the glossy lobes' albedo
+  Transmission Color  the same for the glass lobes' refraction albedo
+  Volume Direct     mean light the camera path brought back through a first scattering
+                    event in a volume, by that vertex's next-event ray or the emission
+                    found right after it (Cycles' PASS_VOLUME_DIRECT)
+  Volume Indirect   the rest of what came back through a first scatter in a volume
 
 Every image is (H, W, C) float32, row 0 at the top, like Film.image.
 """
@@ -36,15 +41,20 @@ from .integrator.paths import (
     AOV_MIST,
     AOV_NORMAL,
     AOV_POSITION,
+    AOV_TRANSMISSION_COLOR,
+    AOV_VOLUME_DIRECT,
+    AOV_VOLUME_INDIRECT,
     LIGHT_AOV_FIRST,
 )
 from .scene import Camera
 
 DATA_PASSES = ("Depth", "Position", "Normal", "Mist")
 DENOISING_PASSES = ("Denoising Normal", "Denoising Albedo")
-LIGHT_PASSES = ("Emission", "Diffuse Color", "Glossy Color")  # need film.light_aovs
 LIGHT_COLUMNS = {"Emission": AOV_EMISSION, "Diffuse Color": AOV_DIFFUSE_COLOR,
-                 "Glossy Color": AOV_GLOSSY_COLOR}
+                 "Glossy Color": AOV_GLOSSY_COLOR, "Transmission Color": AOV_TRANSMISSION_COLOR,
+                 "Volume Direct": AOV_VOLUME_DIRECT,
+                 "Volume Indirect": AOV_VOLUME_INDIRECT}
+LIGHT_PASSES = tuple(LIGHT_COLUMNS)  # need film.light_aovs
 MISS_DEPTH = 1e10  # Cycles' Depth where the camera saw the world
 PANORAMIC = ("equirectangular", "fisheye_equidistant", "fisheye_equisolid", "mirrorball")
 

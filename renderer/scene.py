@@ -129,7 +129,7 @@ class Film:
     region: tuple[int, int, int, int] | None = None
     transparent: bool = False
     aovs: bool = False  # also sum the data and denoising passes (renderer.passes); off = no cost
-    light_aovs: bool = False  # also sum the Emission and Diffuse/Glossy Color passes; off = no cost
+    light_aovs: bool = False  # also sum the light passes (Emission, Colors, Volume); off = no cost
     # The Mist pass (Blender's World > Mist Pass): 0 at mist_start from the camera, 1 at
     # mist_start + mist_depth, shaped by mist_falloff (exponent: 2 quadratic, 1 linear,
     # 0.5 inverse quadratic).

@@ -18,18 +18,34 @@ denoising_passes.h in the bpy 5.0 source):
   the path looks further. Emission or background found before that adds
   feature throughput x radiance x MIS weight to the albedo (Cycles' light_passes.h), and the
   background ends the features.
+* Light passes by category (Cycles' light_passes.h): a path's first scattering event sets
+  its category (PATH_RAY_VOLUME_PASS in a volume). Light it brings to the camera after
+  that goes to the category's Direct pass when it comes from that first vertex (its
+  next-event ray, or emission the path found right after it, at depth 1) and to its
+  Indirect pass otherwise. Only the volume's category is written (Volume Direct and
+  Indirect); a shadow ray carries its column (Shadows.col) from where it was emitted.
 Lobe albedos are the lobe's weight x colour (Cycles' bsdf_albedo also folds in Fresnel for
 microfacet lobes; Haze's plastic and rough conductor are not corrected for it).
 """
 
 import math
 
-from ..bsdfs import CONDUCTOR, DIFFUSE, PLASTIC, ROUGH_CONDUCTOR, SIDE_BACK, SIDE_FRONT, TRANSPARENT
+from ..bsdfs import (
+    CONDUCTOR,
+    DIELECTRIC,
+    DIFFUSE,
+    PLASTIC,
+    ROUGH_CONDUCTOR,
+    SIDE_BACK,
+    SIDE_FRONT,
+    TRANSPARENT,
+)
+from ..bsdfs.fresnel import fresnel_dielectric
 from ..bsdfs.layout import L_COLOR, L_IOR, L_KIND, L_ROUGH, L_SIDES, L_WEIGHT, M_COUNT, M_FIRST
 from ..bsdfs.material import _lobe_selection
 from ..bsdfs.spec_albedo import spec_albedo
 from ..camera import ORTHOGRAPHIC, PROJ_KIND
-from ..kernels import kernel
+from ..kernels import inline_kernel, kernel
 from .paths import (
     AOV_DALBEDO,
     AOV_DATA_DONE,
@@ -40,12 +56,19 @@ from .paths import (
     AOV_FEAT_DEPTH,
     AOV_FEAT_DONE,
     AOV_FEAT_T,
+    AOV_FIRST_KIND,
     AOV_GLOSSY_COLOR,
     AOV_HIT0,
     AOV_MIST,
     AOV_NORMAL,
     AOV_POSITION,
     AOV_SAMPLE0,
+    AOV_TRANSMISSION_COLOR,
+    AOV_VOLUME_DIRECT,
+    AOV_VOLUME_INDIRECT,
+    KIND_NONE,
+    KIND_VOLUME,
+    NO_PASS,
 )
 
 ROUGH_ALPHA = 0.075  # Cycles: a closure with alpha_x alpha_y > 0.075^2 counts as diffuse-like
@@ -72,15 +95,57 @@ def aov_emission_pass(L, pid, beta, le, w):
         L[pid, AOV_EMISSION + c] += beta[c] * le[c] * w
 
 
+@inline_kernel
+def _category_column(kind, direct):
+    """The light pass column of category `kind` (KIND_*), Direct or Indirect."""
+    if kind == KIND_VOLUME:
+        return AOV_VOLUME_DIRECT if direct else AOV_VOLUME_INDIRECT
+    return NO_PASS
+
+
+@inline_kernel
+def shadow_pass_column(L, pid, depth, in_volume, light_aovs):
+    """The light pass a next-event ray from a scattering vertex at `depth` (in a volume or
+    on a surface) also adds to: the vertex's own category's Direct pass at the path's first
+    scattering event, else its first event's category's Indirect pass."""
+    if not light_aovs:
+        return NO_PASS
+    if depth == 0:
+        return _category_column(KIND_VOLUME if in_volume else KIND_NONE, True)
+    return _category_column(L[pid, AOV_FIRST_KIND], False)
+
+
+@inline_kernel
+def aov_first_scatter(L, pid, depth, in_volume):
+    """The path scattered (its depth-th event): the first one sets its category."""
+    if depth == 0 and in_volume:
+        L[pid, AOV_FIRST_KIND] = KIND_VOLUME
+
+
+@kernel
+def aov_scattered_emission(L, pid, depth, beta, le, w):
+    """Emission or background radiance le x MIS weight w that a path found after `depth`
+    >= 1 scattering events: its category's Direct pass right after the first (depth 1),
+    Indirect later."""
+    col = _category_column(L[pid, AOV_FIRST_KIND], depth == 1)
+    if col != NO_PASS:
+        for c in range(3):
+            L[pid, col + c] += beta[c] * le[c] * w
+
+
 @kernel
 def aov_colors(L, pid, mt, m, front, mu, beta):
-    """Diffuse and Glossy Color at a hit before the path scattered (Cycles writes them at
-    every such hit: transparent surfaces in front add theirs): beta x the diffuse-like and
-    glossy lobes' albedo for the view direction with cosine mu. Diffuse lobes give weight x
+    """Diffuse, Glossy and Transmission Color at a hit before the path scattered (Cycles
+    writes them at every such hit: transparent surfaces in front add theirs): beta x the
+    diffuse-like, glossy and transmission lobes' albedo for the view direction with cosine
+    mu. Diffuse lobes give weight x
     colour; the Principled base its share left by the layer, colour x (1 - E(mu)), and the
     layer E(mu) (Cycles' tabulated estimate, renderer.bsdfs.spec_albedo); mirrors and GGX
-    reflection weight x colour (Cycles' Glossy BSDF, no Fresnel). Glass and transparent
-    lobes go to neither (Cycles puts glass's reflectance in Glossy Color: not written)."""
+    reflection weight x colour (Cycles' Glossy BSDF, no Fresnel); glass its refraction,
+    weight x (1 - F(mu)) x its refraction tint (Cycles' bsdf_albedo of a smooth glass
+    closure: exact Fresnel). Transparent lobes go to none (Cycles counts them as no
+    transmission closure), and glass's reflectance, which Cycles adds to Glossy Color,
+    is not written."""
     mats, lobes = mt
     start = mats[m, M_FIRST]
     side = SIDE_FRONT if front else SIDE_BACK
@@ -103,6 +168,12 @@ def aov_colors(L, pid, mt, m, front, mu, beta):
             for c in range(3):
                 a = float(lobes[j, L_WEIGHT + c]) * float(lobes[j, L_COLOR + c])
                 L[pid, AOV_GLOSSY_COLOR + c] += beta[c] * a
+        elif kind == DIELECTRIC:
+            ior = float(lobes[j, L_IOR])
+            t = 1.0 - fresnel_dielectric(mu, ior if front else 1.0 / max(ior, 1e-6))[0]
+            for c in range(3):
+                a = float(lobes[j, L_WEIGHT + c]) * float(lobes[j, L_COLOR + c])
+                L[pid, AOV_TRANSMISSION_COLOR + c] += beta[c] * a * t
 
 
 @kernel

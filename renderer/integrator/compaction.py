@@ -52,6 +52,7 @@ def compact_shadows(n, sh, remaining):
             sh.gap[k] = sh.gap[i]
             sh.key[k] = sh.key[i]
             sh.dim[k] = sh.dim[i]
+            sh.col[k] = sh.col[i]
             for j in range(sh.stack.shape[1]):
                 sh.stack[k, j] = sh.stack[i, j]
             sh.alive[k] = 1

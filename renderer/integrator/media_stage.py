@@ -22,7 +22,14 @@ from ..lights.environment import connect_light_env
 from ..lights.sample import light_has_point, light_pmf, light_point, pick_light
 from ..lights.table import LT_CDF
 from . import nee_batch
-from .aovs import aov_after_medium, aov_emission_pass, aov_medium_segment
+from .aovs import (
+    aov_after_medium,
+    aov_emission_pass,
+    aov_first_scatter,
+    aov_medium_segment,
+    aov_scattered_emission,
+    shadow_pass_column,
+)
 from .config import (
     CFG_AOVS,
     CFG_EQUIANGULAR,
@@ -89,8 +96,9 @@ def _connect_light(lt, env, light, lp, x, u1, u2):
 
 
 @inline_kernel
-def _medium_nee(ps, i, md, lt, env, cfg, x, d, beta, key, dim, sh, s, light, lp, weight):
-    """Next-event estimation from medium point x (with path weight `weight` to reach it).
+def _medium_nee(ps, i, md, lt, env, cfg, x, d, beta, key, dim, sh, s, light, lp, weight, col):
+    """Next-event estimation from medium point x (with path weight `weight` to reach it);
+    its shadow ray also adds to light pass column col.
     Uses dimensions dim .. dim + MEDIUM_NEE_DIMS - 1 whether or not it emits a shadow ray
     (so the batched next-event vertex, nee_batch, keeps the same random numbers)."""
     wi, dist, le, pdf, is_delta = _connect_light(lt, env, light, lp, x, hashed_uniform(key, dim),
@@ -105,25 +113,38 @@ def _medium_nee(ps, i, md, lt, env, cfg, x, d, beta, key, dim, sh, s, light, lp,
     if max3(c) <= 0.0:
         return s
     length = dist * 0.9999 if dist < RAY_FAR else RAY_FAR
-    emit_shadow(sh, s, x, wi, length, c, ps.pid[i], key, dim + 2, stack, 0.0)
+    emit_shadow(sh, s, x, wi, length, c, ps.pid[i], key, dim + 2, stack, 0.0, col)
     return s + 1
 
 
+@inline_kernel
+def _volume_emission_passes(L, pid, depth, beta, le):
+    """A medium's emission along a path's segment: the Emission pass before the path
+    scattered, its category's light pass after."""
+    if depth == 0:
+        aov_emission_pass(L, pid, beta, le, 1.0)
+    else:
+        aov_scattered_emission(L, pid, depth, beta, le, 1.0)
+
+
 @kernel
-def _flush_nee_batch(count, nb, ps, cfg, sh, s):
+def _flush_nee_batch(count, nb, ps, cfg, sh, s, L):
     """Run the batched homogeneous segments 0..count-1 (nee_batch, SIMD across paths): write
     the shadow rays of next-event connections that carry light from index s, and each
-    path's new state. Returns the new s."""
+    path's new state (and the light passes' category in L). Returns the new s."""
     # Without interfaces a shadow ray stays in its medium, so the batch applies the
     # transmittance too (SIMD) and the ray leaves with an empty stack: shadow_media skips it.
     in_batch = cfg[CFG_WALK_SHADOWS] == 0
     nee_batch.run(count, nb, cfg[CFG_SAMPLING] != SAMPLING_NEE, in_batch, cfg[CFG_UNIFORM_CHANNEL] != 0)
+    light_aovs = cfg[CFG_LIGHT_AOVS] != 0
     _, q_key, q_dim, q_path, r = nb
     for j in range(count):
         i = q_path[j]
+        pid = ps.pid[i]
         x, wi, length, c = nee_batch.shadow_ray(r, j)
         if max3(c) > 0.0:
-            emit_shadow(sh, s, x, wi, length, c, ps.pid[i], q_key[j], q_dim[j] + SEG_SHADOW, ps.stack[i], 0.0)
+            col = shadow_pass_column(L, pid, ps.depth[i], True, light_aovs)
+            emit_shadow(sh, s, x, wi, length, c, pid, q_key[j], q_dim[j] + SEG_SHADOW, ps.stack[i], 0.0, col)
             if in_batch:
                 sh.stack[s, 0] = EMPTY
             s += 1
@@ -135,6 +156,8 @@ def _flush_nee_batch(count, nb, ps, cfg, sh, s):
         if state == nee_batch.PASSED:
             store3(ps.beta, i, beta)
             continue
+        if light_aovs:
+            aov_first_scatter(L, pid, ps.depth[i], True)
         _scatter_in_medium(ps, i, beta, ps.depth[i], y, wo, pdf)
         ps.alive[i] = PATH_SCATTERED
     return s
@@ -195,13 +218,13 @@ def shade_media(n, ps, prim, lt, env, md, cfg, L, sh, nb, grid_md):
                 le = segment_emission(md, stack, st, t_hit)
                 if max3(le) > 0.0:
                     add_radiance(L, pid, beta, le)
-                    if light_aovs and depth == 0:
-                        aov_emission_pass(L, pid, beta, le, 1.0)
+                    if light_aovs:
+                        _volume_emission_passes(L, pid, depth, beta, le)
                 nee_batch.record(nb, queued, i, key, dim, lt, light, o, d, t_hit, beta, ss, st,
                                  phase_g(md, stack[0]), use_eq, depth + 1 >= cfg[CFG_RR_DEPTH])
                 queued += 1
                 if queued == nee_batch.CHUNK:
-                    s = _flush_nee_batch(queued, nb, ps, cfg, sh, s)
+                    s = _flush_nee_batch(queued, nb, ps, cfg, sh, s, L)
                     queued = np.int64(0)
                 continue
             lp = light_point(lt, light, hashed_uniform(key, dim + 1), hashed_uniform(key, dim + 2))
@@ -210,8 +233,9 @@ def shade_media(n, ps, prim, lt, env, md, cfg, L, sh, nb, grid_md):
             seg = segment(md, stack, t_hit)
             tn, wn, dim = nee_vertex_on(seg, o, d, t_hit, lp, beta, key, dim, use_eq, uniform_channel)
             if max3(wn) > 0.0:
+                col = shadow_pass_column(L, pid, depth, True, light_aovs)
                 s = _medium_nee(ps, i, md, lt, env, cfg, madd(o, d, tn), d, beta, key, dim, sh, s, light, lp,
-                                wn)
+                                wn, col)
             dim += MEDIUM_NEE_DIMS
             did_nee = True
         if homogeneous:
@@ -224,8 +248,8 @@ def shade_media(n, ps, prim, lt, env, md, cfg, L, sh, nb, grid_md):
                                                             uniform_channel)
         if max3(le) > 0.0:
             add_radiance(L, pid, beta, le)
-            if light_aovs and depth == 0:
-                aov_emission_pass(L, pid, beta, le, 1.0)
+            if light_aovs:
+                _volume_emission_passes(L, pid, depth, beta, le)
         beta = mul(beta, w)
         ps.dim[i] = dim
         if max3(beta) <= 0.0 or (scattered and depth > max_bounces):
@@ -239,15 +263,19 @@ def shade_media(n, ps, prim, lt, env, md, cfg, L, sh, nb, grid_md):
             light = pick_light(cdf, hashed_uniform(key, dim))
             lp = light_point(lt, light, hashed_uniform(key, dim + 1), hashed_uniform(key, dim + 2))
             dim += 3
-            s = _medium_nee(ps, i, md, lt, env, cfg, x, d, beta, key, dim, sh, s, light, lp, (1.0, 1.0, 1.0))
+            col = shadow_pass_column(L, pid, depth, True, light_aovs)
+            s = _medium_nee(ps, i, md, lt, env, cfg, x, d, beta, key, dim, sh, s, light, lp, (1.0, 1.0, 1.0),
+                            col)
             dim += MEDIUM_NEE_DIMS
         wi, pw, ph_pdf = sample_phase(md, stack, x, d, hashed_uniform(key, dim), hashed_uniform(key, dim + 1),
                                       hashed_uniform(key, dim + 2))
         dim += 3
+        if light_aovs:
+            aov_first_scatter(L, pid, depth, True)
         _scatter_in_medium(ps, i, mul(beta, pw), depth, x, wi, ph_pdf)
         alive, dim = russian_roulette(ps, i, key, dim, cfg[CFG_RR_DEPTH])
         ps.alive[i] = PATH_SCATTERED if alive else PATH_DEAD
         ps.dim[i] = dim
     if queued > 0:
-        s = _flush_nee_batch(queued, nb, ps, cfg, sh, s)
+        s = _flush_nee_batch(queued, nb, ps, cfg, sh, s, L)
     return s

@@ -50,8 +50,17 @@ LIGHT_AOV_FIRST = 26
 AOV_EMISSION = 26  # Emission: emission the camera path found before scattering (Cycles' Emit)
 AOV_DIFFUSE_COLOR = 29  # throughput x diffuse albedo at each hit before scattering
 AOV_GLOSSY_COLOR = 32  # throughput x glossy albedo at each hit before scattering
-LIGHT_AOV_COUNT = 9
-L_COLUMNS_LIGHT_AOV = 35
+AOV_VOLUME_DIRECT = 35  # light reaching the camera through a first scatter in a volume: its
+AOV_VOLUME_INDIRECT = 38  # next-event rays and the emission right after it; the rest of it
+AOV_TRANSMISSION_COLOR = 41  # throughput x transmission albedo at each hit before scattering
+LIGHT_AOV_COUNT = 18
+AOV_FIRST_KIND = 44  # scratch: how the path first scattered (KIND_*), set at that event
+L_COLUMNS_LIGHT_AOV = 45
+# Cycles' render pass categories (PATH_RAY_SURFACE_PASS / VOLUME_PASS): what a path's first
+# scattering event was. Only the volume's passes are written, so surfaces leave KIND_NONE.
+KIND_NONE = 0.0
+KIND_VOLUME = 2.0
+NO_PASS = -1  # a shadow ray's pass column when its light goes to no light pass
 
 
 @inline_kernel
@@ -120,9 +129,10 @@ def hit_weight(mis_pdf, pdf_light, sampling):
 
 
 @inline_kernel
-def emit_shadow(sh, s, x, wi, dist, contrib, pid, key, dim, stack, gap):
+def emit_shadow(sh, s, x, wi, dist, contrib, pid, key, dim, stack, gap, col):
     """Write shadow ray s: from x along wi for dist, carrying contrib to path slot pid if it
-    arrives; it starts in the media of `stack` and tracks through them from dimension dim."""
+    arrives; it starts in the media of `stack` and tracks through them from dimension dim.
+    col: the light pass column of L it also adds to (NO_PASS: none)."""
     store3(sh.o, s, x)
     store3(sh.d, s, wi)
     sh.tmax[s] = dist
@@ -131,6 +141,7 @@ def emit_shadow(sh, s, x, wi, dist, contrib, pid, key, dim, stack, gap):
     sh.pid[s] = pid
     sh.key[s] = key
     sh.dim[s] = dim
+    sh.col[s] = col
     for j in range(stack.shape[0]):
         sh.stack[s, j] = stack[j]
     sh.alive[s] = 1

@@ -42,15 +42,24 @@ def shadow_media(count, sh, md, cfg, grid_md):
         store3(sh.contrib, s, mul(load3(sh.contrib, s), tr))
 
 
+@inline_kernel
+def _arrive(sh, s, c, L):
+    """Shadow ray s reached its light with contribution c: add it to its path's radiance,
+    and to its light pass too when it carries one (sh.col)."""
+    pid = sh.pid[s]
+    col = sh.col[s]
+    for k in range(3):
+        L[pid, k] += c[k]
+        if col >= 0:
+            L[pid, col + k] += c[k]
+
+
 @kernel
 def resolve_shadows(count, sh, occluded, L):
     """Add the contributions of shadow rays that reached their light."""
     for s in range(count):
         if not occluded[s]:
-            pid = sh.pid[s]
-            L[pid, 0] += sh.contrib[s, 0]
-            L[pid, 1] += sh.contrib[s, 1]
-            L[pid, 2] += sh.contrib[s, 2]
+            _arrive(sh, s, load3(sh.contrib, s), L)
 
 
 @kernel
@@ -80,10 +89,7 @@ def walk_shadows(count, sh, prim, thit, remaining, geo, mt, md, cfg, L, grid_md)
             sh.alive[s] = 0
             continue
         if p < 0:
-            pid = sh.pid[s]
-            L[pid, 0] += c[0]
-            L[pid, 1] += c[1]
-            L[pid, 2] += c[2]
+            _arrive(sh, s, c, L)
             sh.alive[s] = 0
             continue
         ng = load3(geo.ng, p)

@@ -50,7 +50,9 @@ class Shadows(NamedTuple):
     medium-scattering one). o, d (S, 3), tmax (S,), gap (S,) (as for paths: the push off
     the surface, integrated by media), contrib (S, 3) unoccluded radiance,
     pid (S,) int32, key (S,) uint64, dim (S,) int32 (random numbers for tracking through
-    media while walking interfaces), stack (S, MAX_STACK) int32, alive (S,) uint8."""
+    media while walking interfaces), stack (S, MAX_STACK) int32, alive (S,) uint8,
+    col (S,) int32: the light pass column of L its arrival also adds to (paths.NO_PASS:
+    none), fixed where it is emitted (the path's depth moves on before it is traced)."""
 
     o: np.ndarray
     d: np.ndarray
@@ -62,6 +64,7 @@ class Shadows(NamedTuple):
     dim: np.ndarray
     stack: np.ndarray
     alive: np.ndarray
+    col: np.ndarray
 
 
 def allocate_paths(n: int) -> Paths:
@@ -82,4 +85,5 @@ def allocate_shadows(n: int) -> Shadows:
         gap=np.zeros(s, np.float32), contrib=np.zeros((s, 3), np.float32), pid=np.zeros(s, np.int32),
         key=np.zeros(s, np.uint64),
         dim=np.zeros(s, np.int32), stack=np.full((s, MAX_STACK), -1, np.int32), alive=np.zeros(s, np.uint8),
+        col=np.full(s, -1, np.int32),
     )

@@ -33,7 +33,16 @@ from ..lights.sample import (
     triangle_light_pdf,
 )
 from ..lights.table import LT_CDF
-from .aovs import aov_after_medium, aov_background, aov_colors, aov_emission, aov_emission_pass, aov_surface
+from .aovs import (
+    aov_after_medium,
+    aov_background,
+    aov_colors,
+    aov_emission,
+    aov_emission_pass,
+    aov_scattered_emission,
+    aov_surface,
+    shadow_pass_column,
+)
 from .config import (
     CFG_AOVS,
     CFG_FILM_TRANSPARENT,
@@ -115,6 +124,8 @@ def shade_surface(n, ps, prim, bu, bv, geo, mt, override, lt, env_light, sun_row
                 add_weighted_radiance(L, pid, beta, le, w)
                 if aov_open:
                     aov_emission(L, pid, beta, le, w)
+                if light_aovs and depth > 0:
+                    aov_scattered_emission(L, pid, depth, beta, le, w)
             if aov_open:
                 aov_background(L, pid)
             ps.alive[i] = PATH_DEAD
@@ -143,8 +154,11 @@ def shade_surface(n, ps, prim, bu, bv, geo, mt, override, lt, env_light, sun_row
                 add_weighted_radiance(L, pid, beta, le, w)
                 if aov_open:
                     aov_emission(L, pid, beta, le, w)
-                if light_aovs and depth == 0:
-                    aov_emission_pass(L, pid, beta, le, w)
+                if light_aovs:
+                    if depth == 0:
+                        aov_emission_pass(L, pid, beta, le, w)
+                    else:
+                        aov_scattered_emission(L, pid, depth, beta, le, w)
 
         if not bsdf_has_lobes(mt, m, front):
             if light >= 0:
@@ -171,8 +185,9 @@ def shade_surface(n, ps, prim, bu, bv, geo, mt, override, lt, env_light, sun_row
         wo = to_local(neg(d), ts, tt, sn)
 
         if sampling != SAMPLING_BSDF and cdf.shape[0] > 1:
+            col = shadow_pass_column(L, pid, depth, False, light_aovs)
             s, dim = _surface_nee(lt, env, mt, m, front, x, ng, wo, ts, tt, sn, beta, sampling, pid, key,
-                                  dim, stack, sh, s)
+                                  dim, stack, sh, s, col)
 
         # BSDF sampling
         wil, w, pdf, event = bsdf_sample(mt, m, front, wo, uniform(key, dim), uniform(key, dim + 1),
@@ -203,10 +218,11 @@ def shade_surface(n, ps, prim, bu, bv, geo, mt, override, lt, env_light, sun_row
 
 
 @inline_kernel
-def _surface_nee(lt, env, mt, m, front, x, ng, wo, ts, tt, sn, beta, sampling, pid, key, dim, stack, sh, s):
+def _surface_nee(lt, env, mt, m, front, x, ng, wo, ts, tt, sn, beta, sampling, pid, key, dim, stack, sh, s,
+                 col):
     """Next-event estimation at surface point x: pick a light and a point on it, weigh the
     connection by the BSDF and MIS, and write its shadow ray at index s when it carries
-    light. Returns (next shadow index, next dimension)."""
+    light (and to light pass column col). Returns (next shadow index, next dimension)."""
     cdf = lt[LT_CDF]  # what pick_light searches: L + 1 entries
     light = pick_light(cdf, uniform(key, dim))
     lp = light_point(lt, light, uniform(key, dim + 1), uniform(key, dim + 2))
@@ -233,7 +249,7 @@ def _surface_nee(lt, env, mt, m, front, x, ng, wo, ts, tt, sn, beta, sampling, p
                 ws = scale(to, 1.0 / dist)
                 dist *= 0.9999
             gap = max(0.0, dot(sub(xo, x), ws))
-            emit_shadow(sh, s, xo, ws, dist, c, pid, key, dim, stack, gap)
+            emit_shadow(sh, s, xo, ws, dist, c, pid, key, dim, stack, gap, col)
             s += 1
             dim += SHADOW_DIMS
     return s, dim

@@ -176,7 +176,7 @@ class Tracer:
         ]
         if cs.has_media:
             stack = self.init_stack
-            calls = [(_flush_nee_batch, (0, self.nb, self.ps, self.cfg, self.sh, 0)),
+            calls = [(_flush_nee_batch, (0, self.nb, self.ps, self.cfg, self.sh, 0, self.L)),
                      (phase_eval, (self.md, stack, v, v, v)),
                      (sample_phase, (self.md, stack, v, v, 0.5, 0.5, 0.5))] + calls
         return calls
