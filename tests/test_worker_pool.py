@@ -66,9 +66,12 @@ def reference() -> Film:
 
 
 def test_units_cover_every_sample_once_and_depend_on_image_and_spp_only():
-    for width, height, spp in [(24, 24, 64), (128, 128, 1000), (1920, 1080, 7), (1, 1, 1)]:
+    """Images of at most UNIT_PATHS pixels: one tile, consecutive sample ranges (tiled
+    images: tests/test_units.py)."""
+    for width, height, spp in [(24, 24, 64), (128, 128, 1000), (1, 1, 1)]:
         units = plan_units(width, height, spp)
         assert [u.index for u in units] == list(range(len(units)))
+        assert {(u.first_row, u.rows) for u in units} == {(0, height)}
         starts = [u.first_sample for u in units]
         assert starts == sorted(starts) and starts[0] == 0
         assert all(a.first_sample + a.samples == b.first_sample for a, b in zip(units, units[1:]))
