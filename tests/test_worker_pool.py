@@ -20,6 +20,7 @@ import pytest
 from examples.media_scenes import grid_medium, with_grid_medium
 from examples.scenes import cornell_box
 from renderer import render as render_module
+from renderer import units as units_module
 from renderer.compile import compile_scene
 from renderer.film import Film
 from renderer.integrator.wavefront import Tracer
@@ -210,6 +211,18 @@ def test_two_workers_give_the_bits_of_one_process(reference: Film):
     scene = cornell_box(size=24, spp=64)
     assert_same_bits(frames(scene, workers=2)[-1].film, reference)
     assert_same_bits(frames(scene, workers=1, in_process=False)[-1].film, reference)
+
+
+@pytest.mark.slow
+def test_a_tiled_render_on_two_workers_gives_the_bits_of_one_process(monkeypatch):
+    """Tiles without a large image: UNIT_PATHS lowered so a 24x24 box is 3 bands of 8 rows, 1
+    spp per unit (planned in this process only; on a Dask cluster: tests/test_cluster.py)."""
+    monkeypatch.setattr(units_module, "UNIT_PATHS", 200)
+    assert [(u.first_row, u.rows) for u in plan_units(24, 24, 1)] == [(0, 8), (8, 8), (16, 8)]
+    reference = frames(cornell_box(size=24, spp=6), workers=1, in_process=True)[-1].film
+    last = frames(cornell_box(size=24, spp=6), workers=2)[-1]
+    assert last.spp == 6 and (last.film.n == 6).all() and not last.note
+    assert_same_bits(last.film, reference)
 
 
 @pytest.mark.slow
