@@ -280,9 +280,8 @@ class _PoolRender:
             return
         self.attempts[unit.index] = self.attempts.get(unit.index, 0) + 1
         if self.attempts[unit.index] >= MAX_ATTEMPTS:
-            self.note = (f"worker processes died {MAX_ATTEMPTS} times tracing samples {unit.first_sample}.."
-                         f"{unit.first_sample + unit.samples - 1} (last exit code {code}); stopped with the"
-                         " samples done")
+            self.note = (f"worker processes died {MAX_ATTEMPTS} times tracing {unit.describe()} (last exit"
+                         f" code {code}); stopped with the samples done")
             return
         heapq.heappush(self.retry, unit)
 

@@ -13,16 +13,15 @@ from __future__ import annotations
 from collections.abc import Iterator
 from typing import TYPE_CHECKING, NamedTuple
 
-from .film import Film
-
-if TYPE_CHECKING:
+if TYPE_CHECKING:  # the film and the tracer load numba: planning units (renderer.memory) does not
+    from .film import Film
     from .integrator.wavefront import Tracer
 
 # Unit size rule: about UNIT_PATHS path samples per unit: 0.1-0.2 s on one core for the
 # Cornell box with or without fog (0.9-1.2 M samples/s per core, README), up to about 1 s
 # for dense grids (3.6-8.7 us per sample). Small enough that a time limit wastes little
 # and a killed worker loses little; large enough that the per-unit overhead (a task and a
-# film sent back, 24 bytes per pixel and channel) stays small against the tracing.
+# film sent back) stays small against the tracing.
 #
 # An image of at most UNIT_PATHS pixels is one tile: a unit is every pixel for
 # max(1, UNIT_PATHS // pixels) samples, the first units smaller (1, 1, 2, 4, ... spp) so
@@ -30,12 +29,13 @@ if TYPE_CHECKING:
 #
 # A larger image is cut into tiles of whole rows (bands), as few as keep a tile at most
 # UNIT_PATHS pixels where a row allows (a 3840x2160 frame: 64 bands of 34 rows, 130560
-# pixels; a row is the least), the same height but for the last; a unit is one tile for
-# 1 sample per pixel (or more while a tile stays under UNIT_PATHS paths). Whole rows, not
-# squares: a band is a contiguous range of the window's pixels, so the tracer's linear
-# sample index needs only an offset and a tile's film merges as one slice; embree traces
-# a batch of rays as it comes, so a square tile's coherence would buy nothing here.
-# Units go pass by pass (a sample range), tile by tile within a pass.
+# pixels; a row is the least), of one height but for a shorter last; a unit is one tile
+# for 1 sample per pixel (more only while a tile stays under UNIT_PATHS paths). A tile's
+# film (64 bytes a pixel) is what a worker sends back: 8 MB for a 4K band, against 530 MB
+# for a whole-frame unit. Whole rows, not squares: a band is a contiguous range of the
+# window's pixels, so the tracer's linear sample index needs only an offset and a tile's
+# film merges as one slice (squares might trace camera rays a little more coherently; not
+# measured). Units go pass by pass (a sample range), tile by tile within a pass.
 UNIT_PATHS = 1 << 17
 
 
@@ -46,16 +46,20 @@ class Unit(NamedTuple):
     first_row: int  # the tile: rows first_row .. first_row + rows - 1 of the rendered window,
     rows: int  # every column (the whole window for an image that is one tile)
 
+    def describe(self) -> str:
+        """What the unit traces, for messages: "samples 4..7 of rows 34..67"."""
+        return (f"samples {self.first_sample}..{self.first_sample + self.samples - 1} of rows "
+                f"{self.first_row}..{self.first_row + self.rows - 1}")
+
 
 def tile_rows(width: int, height: int, unit_paths: int) -> int:
     """Rows per tile: the height for an image of at most unit_paths pixels, else the band
     height that cuts it into the fewest tiles of at most unit_paths pixels (one row the
     least), spread evenly."""
-    pixels = max(1, width * height)
-    if pixels <= unit_paths:
+    if width * height <= unit_paths:
         return max(1, height)
-    tiles = min(max(1, height), -(-pixels // unit_paths))
-    return -(-height // tiles)
+    tiles = -(-height // max(1, unit_paths // max(1, width)))  # of the most rows that fit
+    return -(-height // tiles)  # no more than those
 
 
 def iter_units(width: int, height: int, spp: int, unit_paths: int | None = None) -> Iterator[Unit]:
@@ -84,6 +88,8 @@ def plan_units(width: int, height: int, spp: int, unit_paths: int | None = None)
 def trace_unit(tracer: Tracer, unit: Unit, seed: int) -> Film:
     """One unit into a film of its own, of its tile's size: merged into place by addition,
     in unit order, wherever traced."""
+    from .film import Film
+
     part = Film(tracer.cs.width, unit.rows, unit.first_row)
     tracer.trace(part, unit.first_sample, unit.samples, seed)
     return part

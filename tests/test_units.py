@@ -30,7 +30,7 @@ def coverage(units: list[Unit], height: int, spp: int) -> np.ndarray:
 
 @pytest.mark.parametrize("width, height, spp, unit_paths", [
     (24, 24, 8, 100), (24, 24, 64, None), (3840, 2160, 3, None), (1920, 1080, 7, None), (7, 5, 3, 4),
-    (1, 1, 1, None), (300000, 2, 2, None)])
+    (1, 1, 1, None), (300000, 2, 2, None), (7680, 4320, 2, None), (401, 400, 1, None)])
 def test_every_pixel_and_sample_is_in_exactly_one_unit(width, height, spp, unit_paths):
     units = plan_units(width, height, spp, unit_paths)
     assert units == plan_units(width, height, spp, unit_paths)  # the image and spp only
@@ -53,7 +53,8 @@ def test_a_4k_frame_is_cut_into_64_bands_of_about_unit_paths_pixels():
     units = plan_units(3840, 2160, 2)
     assert len(units) == 2 * 64 and units[63].rows == 2160 - 63 * 34
     assert tile_rows(362, 362, UNIT_PATHS) == 362  # 131044 pixels: one tile
-    assert tile_rows(400, 400, UNIT_PATHS) == 200  # two even bands, not 328 + 72 rows
+    assert tile_rows(400, 400, UNIT_PATHS) == 200  # two even bands, not 327 + 73 rows
+    assert units[65].describe() == "samples 1..1 of rows 34..67"  # in messages about a unit
 
 
 def assert_same_bits(a: Film, b: Film) -> None:
@@ -97,3 +98,19 @@ def test_tiles_of_a_render_region_are_those_pixels_of_the_whole_frame():
     rows = frame.sum.reshape(24, 24, 3)[5:18, 3:20]
     assert np.array_equal(tiled.sum.reshape(13, 17, 3), rows)
     assert np.array_equal(tiled.sq.reshape(13, 17, 3), frame.sq.reshape(24, 24, 3)[5:18, 3:20])
+
+
+def test_the_memory_estimate_counts_a_tile_per_worker_and_plans_without_numba():
+    import subprocess
+    import sys
+
+    from renderer.memory import WORKER_BYTES_PER_PIXEL, render_memory_bytes
+    from renderer.scene import Film as FilmSize
+
+    film = FilmSize(7680, 4320)  # 8K: 255 bands of 17 rows (2 the last)
+    per_worker = 7680 * tile_rows(7680, 4320, UNIT_PATHS) * WORKER_BYTES_PER_PIXEL
+    assert render_memory_bytes(film, 4) - render_memory_bytes(film, 1) == 4 * per_worker
+    assert per_worker < UNIT_PATHS * WORKER_BYTES_PER_PIXEL
+    code = "import sys, renderer.memory; print('numba' in sys.modules)"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert out.stdout.strip() == "False", out.stderr
