@@ -258,7 +258,7 @@ def _render_and_write(args, scene) -> int:
         write_png(png, image)
         msg += f" and {png}"
     seconds = time.perf_counter() - t0
-    samples = last.spp * last.film.width * last.film.height  # the rendered window's pixels
+    samples = int(last.film.n.sum())  # traced: a stop in mid-pass leaves some tiles a unit ahead
     print(msg, file=sys.stderr)
     if last.note:
         print(f"warning: {last.note}", file=sys.stderr)

@@ -171,8 +171,7 @@ class ClusterRender:
         from distributed.scheduler import KilledWorker
 
         if isinstance(error, KilledWorker):
-            self.note = (f"cluster workers died tracing samples {unit.first_sample}.."
-                         f"{unit.first_sample + unit.samples - 1}; stopped with the samples done")
+            self.note = f"cluster workers died tracing {unit.describe()}; stopped with the samples done"
             return False
         raise error
 

@@ -45,7 +45,7 @@ def trace_remote(key, payload, unit, seed):
 
 def remote_task():
     """trace_task as a function the scheduler can unpickle without Haze: (key, payload,
-    (index, first_sample, samples), seed) -> Film."""
+    (index, first_sample, samples, first_row, rows), seed) -> the unit's (tile's) Film."""
     namespace = {"__name__": "haze_remote_task"}  # not importable: pickled by value
     exec(_REMOTE_SOURCE, namespace)
     return namespace["trace_remote"]

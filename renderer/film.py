@@ -1,5 +1,6 @@
 """The film: per-pixel sum, sum of squares and count of path samples, and the sum of
-their alpha.
+their alpha, over the rendered window or a tile of it (a band of whole rows,
+renderer.units).
 
 Keeping the second moment lets callers estimate the error of the current image while it
 renders (the variance of each pixel's mean), and films of disjoint sample ranges merge by
@@ -18,9 +19,11 @@ REL_EPS = 1e-2
 
 
 class Film:
-    def __init__(self, width: int, height: int):
+    def __init__(self, width: int, height: int, first_row: int = 0):
+        """width x height pixels, rows first_row .. first_row + height - 1 of the window."""
         self.width = width
         self.height = height
+        self.first_row = first_row
         p = width * height
         self.sum = np.zeros((p, 3), np.float64)  # per pixel and channel
         self.sq = np.zeros((p, 3), np.float64)
@@ -39,13 +42,17 @@ class Film:
         return self.aov
 
     def add(self, other: Film) -> None:
-        self.sum += other.sum
-        self.sq += other.sq
-        self.n += other.n
-        self.alpha += other.alpha
+        """Add other's samples into place: other may hold some of this film's rows (a tile)."""
+        start = (other.first_row - self.first_row) * self.width
+        at = slice(start, start + other.n.size)
+        assert other.width == self.width and 0 <= start and at.stop <= self.n.size, "a tile outside the film"
+        self.sum[at] += other.sum
+        self.sq[at] += other.sq
+        self.n[at] += other.n
+        self.alpha[at] += other.alpha
         self.nonfinite += other.nonfinite
         if other.aov is not None:
-            self.ensure_aov(other.aov.shape[1])[:] += other.aov
+            self.ensure_aov(other.aov.shape[1])[at] += other.aov
 
     @property
     def spp(self) -> int:

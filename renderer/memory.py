@@ -9,12 +9,14 @@ import os
 
 from renderer.errors import SceneError
 from renderer.scene import Film
+from renderer.units import UNIT_PATHS, tile_rows
 
 # Bytes per pixel a render holds: the film's sums, squares and counts (2 * 24 + 8), and
 # per progress update the float32 image with the float64 mean and variance behind it.
 FILM_BYTES_PER_PIXEL = 56
 PROGRESS_BYTES_PER_PIXEL = 12 + 24 + 24
-# Each worker process fills its own film, and the parent holds it again while merging.
+# Each worker process fills its own film, and the parent holds it again while merging: one
+# unit's film, the size of a tile (the whole image unless it is larger than UNIT_PATHS pixels).
 WORKER_BYTES_PER_PIXEL = 2 * FILM_BYTES_PER_PIXEL
 # The render passes' sums when the film has them (film.aovs): integrator.paths.AOV_COUNT
 # float64 columns (a constant here: importing the integrator would load numba).
@@ -30,7 +32,9 @@ def render_memory_bytes(film: Film, workers: int) -> int:
     aovs = AOV_BYTES_PER_PIXEL if getattr(film, "aovs", False) or light else 0
     aovs += LIGHT_AOV_BYTES_PER_PIXEL if light else 0
     worker_bytes = WORKER_BYTES_PER_PIXEL + 2 * aovs  # as WORKER_BYTES_PER_PIXEL: two films in flight
-    return pixels * (FILM_BYTES_PER_PIXEL + aovs + PROGRESS_BYTES_PER_PIXEL + extra_workers * worker_bytes)
+    tile_pixels = film.width * tile_rows(film.width, film.height, UNIT_PATHS)
+    return (pixels * (FILM_BYTES_PER_PIXEL + aovs + PROGRESS_BYTES_PER_PIXEL)
+            + tile_pixels * extra_workers * worker_bytes)
 
 
 def available_memory_bytes() -> int | None:

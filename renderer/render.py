@@ -1,15 +1,25 @@
 """Progressive rendering: fixed units of work, traced anywhere, merged in unit order.
 
 A path's random numbers depend only on (seed, pixel, sample index), so a render is cut
-into units, each a range of sample indices for every pixel (`plan_units`). Their sizes
-depend only on the image size and the sample count, never on timing, and the film adds
-them in unit order, so the image is bit-identical whatever the number of workers and equal
-to the single-process render of the same seed. A unit that finishes before its
-predecessors waits in a small buffer. The caller sees the image after merges (the first at
-once, then at most every YIELD_INTERVAL) and may stop at any time. A render that stops
-early (time limit, target error, or a KeyboardInterrupt while it waits) merges every
-finished unit before it returns, so no finished sample is lost (closing the generator
-keeps what was yielded), and the film counts exactly the samples it holds.
+into units, each a range of sample indices for every pixel of a tile (`plan_units`: the
+whole image, or bands of rows in a large one). Their sizes depend only on the image size
+and the sample count, never on timing, and the film adds them into place in unit order
+(this process traces the same units), so the image is bit-identical whatever the number
+of workers and equal to the single-process render of the same seed. A unit that finishes
+before its predecessors waits in a small buffer.
+
+While a pass (a sample range) is cut into tiles, the pixels of tiles already merged hold
+one unit's samples more than the others. Every image shown is each pixel's own mean and
+the error estimate weighs each pixel by its own count (renderer.film), so a progress
+image in mid-pass is as right as one at a pass's end, only less even; waiting for whole
+passes would hide finished work (a 4K pass is 64 units) and lose it on a stop. The
+samples reported (Progress.spp, film.spp) are those every pixel has.
+
+The caller sees the image after merges (the first at once, then at most every
+YIELD_INTERVAL) and may stop at any time. A render that stops early (time limit, target
+error, or a KeyboardInterrupt while it waits) merges every finished unit before it
+returns, so no finished sample is lost (closing the generator keeps what was yielded),
+and the film counts exactly the samples it holds.
 
 Embree holds Python's lock while it traces, so the second core needs a second process.
 The worker processes (renderer.workers) persist across renders in this process and get
@@ -270,9 +280,8 @@ class _PoolRender:
             return
         self.attempts[unit.index] = self.attempts.get(unit.index, 0) + 1
         if self.attempts[unit.index] >= MAX_ATTEMPTS:
-            self.note = (f"worker processes died {MAX_ATTEMPTS} times tracing samples {unit.first_sample}.."
-                         f"{unit.first_sample + unit.samples - 1} (last exit code {code}); stopped with the"
-                         " samples done")
+            self.note = (f"worker processes died {MAX_ATTEMPTS} times tracing {unit.describe()} (last exit"
+                         f" code {code}); stopped with the samples done")
             return
         heapq.heappush(self.retry, unit)
 

@@ -22,11 +22,13 @@ import pytest
 
 from examples.scenes import cornell_box
 from renderer import cluster as cluster_module
+from renderer import units as units_module
 from renderer.cluster import LOCAL, ClusterError, connect
 from renderer.cluster_tasks import TOPIC, tracer_builds
 from renderer.film import Film
 from renderer.render import Progress, render_progressive
 from renderer.scene import Scene
+from renderer.units import plan_units
 
 pytest.importorskip("distributed")
 
@@ -75,21 +77,53 @@ def test_two_cluster_workers_give_the_bits_of_one_process(client):
     assert again == builds, "a worker built its tracer again for the same scene"
 
 
-def test_a_killed_worker_costs_only_its_units(client):
-    scene = cornell_box(size=24, spp=1536)
-    reference = frames(cornell_box(size=24, spp=1536), workers=1, in_process=True)[-1].film
+@pytest.fixture
+def tiled(monkeypatch):
+    """Tiles without a large image: UNIT_PATHS lowered so a 24x24 box is 3 bands of 8 rows at
+    1 spp per unit (few units: each costs a few ms however small). The units are planned in
+    this process only."""
+    monkeypatch.setattr(units_module, "UNIT_PATHS", 200)
+    tiles = [(u.first_row, u.rows, u.samples) for u in plan_units(24, 24, 1)]
+    assert tiles == [(0, 8, 1), (8, 8, 1), (16, 8, 1)]
+
+
+def test_a_tiled_render_on_two_cluster_workers_gives_the_bits_of_one_process(client, tiled):
+    """(On the local pool: tests/test_worker_pool.py.)"""
+    reference = frames(cornell_box(size=24, spp=6), workers=1, in_process=True)[-1].film
+    assert (reference.n == 6).all()
+    last, counts = None, []
+    for last in render_progressive(cornell_box(size=24, spp=6), workers=2, cluster=LOCAL):  # noqa: B007
+        counts.append((last.spp, int(last.film.n.min()), int(last.film.n.max())))
+    assert last is not None and last.spp == 6 and not last.note
+    assert np.all(last.film.n == 6)  # every pixel, every sample exactly once
+    assert_same_bits(last.film, reference)
+    # Images in mid-pass: each pixel at most one unit ahead, spp what every pixel has.
+    assert all(spp == low and high - low <= 1 for spp, low, high in counts), counts
+
+
+def test_a_killed_worker_costs_only_its_units(client, tiled):
+    """In a tiled render (one worker restart is what this costs, so one test for both)."""
+    spp = 24  # 72 units: most still to come at the first image
+    reference = frames(cornell_box(size=24, spp=spp), workers=1, in_process=True)[-1].film
     pids = client.run(os.getpid)
     killed = []
     last = None
-    for last in render_progressive(scene, workers=2, cluster=LOCAL):  # noqa: B007
+    for last in render_progressive(cornell_box(size=24, spp=spp), workers=2, cluster=LOCAL):  # noqa: B007
         if not killed:  # at the first image: units are in flight on both workers
             victim = sorted(pids.values())[0]
             os.kill(victim, signal.SIGKILL)
             killed.append(victim)
     assert killed and last is not None and not last.note
-    assert last.spp == 1536 and np.all(last.film.n == 1536)  # every sample exactly once
+    assert last.spp == spp and np.all(last.film.n == spp)  # every sample exactly once
     assert_same_bits(last.film, reference)
     client.wait_for_workers(2, timeout=60)  # the nanny starts a new process for the next test
+
+
+def test_cluster_workers_ignore_ctrl_c_also_when_started_again(client):
+    """A Ctrl-C reaches the process group: this process stops the work, the workers (those
+    started again after the kill above too) ignore it."""
+    ignored = client.run(lambda: signal.getsignal(signal.SIGINT) == signal.SIG_IGN)
+    assert list(ignored.values()) == [True, True]
 
 
 def test_cancelling_keeps_the_units_done_and_stops_the_work(client):

@@ -20,6 +20,7 @@ import pytest
 from examples.media_scenes import grid_medium, with_grid_medium
 from examples.scenes import cornell_box
 from renderer import render as render_module
+from renderer import units as units_module
 from renderer.compile import compile_scene
 from renderer.film import Film
 from renderer.integrator.wavefront import Tracer
@@ -66,9 +67,12 @@ def reference() -> Film:
 
 
 def test_units_cover_every_sample_once_and_depend_on_image_and_spp_only():
-    for width, height, spp in [(24, 24, 64), (128, 128, 1000), (1920, 1080, 7), (1, 1, 1)]:
+    """Images of at most UNIT_PATHS pixels: one tile, consecutive sample ranges (tiled
+    images: tests/test_units.py)."""
+    for width, height, spp in [(24, 24, 64), (128, 128, 1000), (1, 1, 1)]:
         units = plan_units(width, height, spp)
         assert [u.index for u in units] == list(range(len(units)))
+        assert {(u.first_row, u.rows) for u in units} == {(0, height)}
         starts = [u.first_sample for u in units]
         assert starts == sorted(starts) and starts[0] == 0
         assert all(a.first_sample + a.samples == b.first_sample for a, b in zip(units, units[1:]))
@@ -210,6 +214,18 @@ def test_two_workers_give_the_bits_of_one_process(reference: Film):
 
 
 @pytest.mark.slow
+def test_a_tiled_render_on_two_workers_gives_the_bits_of_one_process(monkeypatch):
+    """Tiles without a large image: UNIT_PATHS lowered so a 24x24 box is 3 bands of 8 rows, 1
+    spp per unit (planned in this process only; on a Dask cluster: tests/test_cluster.py)."""
+    monkeypatch.setattr(units_module, "UNIT_PATHS", 200)
+    assert [(u.first_row, u.rows) for u in plan_units(24, 24, 1)] == [(0, 8), (8, 8), (16, 8)]
+    reference = frames(cornell_box(size=24, spp=6), workers=1, in_process=True)[-1].film
+    last = frames(cornell_box(size=24, spp=6), workers=2)[-1]
+    assert last.spp == 6 and (last.film.n == 6).all() and not last.note
+    assert_same_bits(last.film, reference)
+
+
+@pytest.mark.slow
 def test_every_progress_counts_whole_units_in_order(reference: Film):
     seen = frames(cornell_box(size=24, spp=64), workers=2)
     sums = np.cumsum([u.samples for u in plan_units(24, 24, 64)])
@@ -286,6 +302,42 @@ def test_a_lone_dense_voxel_stops_at_the_time_limit():
     assert (last.film.n == last.spp).all()
     if last.spp == 0:
         assert "time limit" in last.note
+
+
+def test_a_ctrl_c_while_a_worker_starts_is_not_lost_and_the_worker_ignores_it(monkeypatch):
+    """SIGINT is held back (blocked) while a worker starts, not ignored: one that arrives
+    meanwhile interrupts this process afterwards (ignoring dropped it, and a render once ran
+    on after its Ctrl-C); the worker inherits the block and ignores SIGINT before unblocking."""
+    from multiprocessing.process import BaseProcess
+
+    from renderer import workers
+
+    started = []
+    real_start = BaseProcess.start
+
+    def start_then_ctrl_c(process) -> None:
+        real_start(process)
+        started.append(process)
+        os.kill(process.pid, signal.SIGINT)  # the worker, still starting
+        os.kill(os.getpid(), signal.SIGINT)  # this process, inside the start
+
+    monkeypatch.setattr(BaseProcess, "start", start_then_ctrl_c)
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            workers.Worker()
+        monkeypatch.undo()
+        worker = workers.Worker()
+        started.append(worker.process)
+        os.kill(worker.process.pid, signal.SIGINT)  # while it imports the renderer
+        worker.conn.send(None)  # stop once started: exit code 0, not 1 (KeyboardInterrupt) or -2
+        worker.process.join(timeout=300)
+        assert worker.process.exitcode == 0
+        assert started[0].exitcode in (None, 0)  # the first one got its SIGINT as early, and ignored it too
+    finally:
+        for process in started:
+            if process.is_alive():
+                process.terminate()
+            process.join(timeout=10)
 
 
 @pytest.mark.slow

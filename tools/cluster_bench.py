@@ -69,7 +69,7 @@ def unit_overhead(units: int) -> tuple[float, float]:
     scene = cornell_box(4, 1, max_bounces=3)
     cs = compile_scene(scene)
     tracer = Tracer(cs, scene.integrator)
-    plan = [Unit(i, i, 1) for i in range(units)]
+    plan = [Unit(i, i, 1, 0, cs.height) for i in range(units)]
     t0 = time.perf_counter()
     for unit in plan:
         trace_unit(tracer, unit, 0)

@@ -1,11 +1,12 @@
 """The first stage of a batch: one camera ray per path, with its random key and the media
 the camera sits in.
 
-Sample indices are linear over a pass, so a batch may hold the tail of one sample of every
-pixel and the head of the next: index k is pixel k % (width * height), sample
-sample_base + k // (width * height), where width x height is the rendered window (the
-whole frame without a Render Region). A path's random key is that of its pixel in the full
-frame, so a window renders the same pixels as the whole frame does.
+Sample indices are linear over a pass of a tile, so a batch may hold the tail of one sample
+of every pixel and the head of the next: index k is the tile's pixel k % (width * rows),
+sample sample_base + k // (width * rows), where the tile is rows first_row ..
+first_row + rows - 1 of the rendered window (the whole frame without a Render Region) and
+width its width. A path's random key and pixel stratification are those of its pixel in
+the full frame, so a window or a tile renders the same pixels as the whole frame does.
 """
 
 from ..camera import RASTER_WIDTH, RASTER_X0, RASTER_Y0, camera_ray
@@ -18,18 +19,18 @@ from .paths import PATH_ACTIVE, PATH_DEAD, store3
 
 
 @kernel
-def start_paths(ps, pixel_of_pid, cam, width, height, seed, first, n, sample_base, init_stack):
-    """Camera rays for linear sample indices first .. first + n - 1 of a pass, into rows
-    0..n-1 (row i owns radiance slot i)."""
+def start_paths(ps, pixel_of_pid, cam, width, rows, first_row, seed, first, n, sample_base, init_stack):
+    """Camera rays for linear sample indices first .. first + n - 1 of a pass over a tile,
+    into rows 0..n-1 (row i owns radiance slot i); pixel_of_pid gets the tile's pixel."""
     raster = cam.raster
-    npix = width * height
+    npix = width * rows
     for i in range(n):
         k = first + i
         pixel = k % npix
         sample = sample_base + k // npix
         # The pixel's place in the full frame.
         px = int(raster[RASTER_X0]) + pixel % width
-        py = int(raster[RASTER_Y0]) + pixel // width
+        py = int(raster[RASTER_Y0]) + first_row + pixel // width
         frame_pixel = py * int(raster[RASTER_WIDTH]) + px
         key = path_key(seed, frame_pixel, sample)
         # Stratified within the pixel over its samples (kernels.sobol); dimensions 0 and 1

@@ -127,7 +127,7 @@ class Tracer:
         cs, ps, sh, lt, cfg, L = self.cs, self.ps, self.sh, self.lt, self.cfg, self.L
         prim, bu, bv = np.full(1, -1, np.int32), np.zeros(1, np.float32), np.zeros(1, np.float32)
         calls: list[KernelCall] = self.subtree_calls() + [
-            (K.start_paths, (ps, self.pixel_of_pid, cs.camera, cs.width, cs.height, 0, 0, 1, 0,
+            (K.start_paths, (ps, self.pixel_of_pid, cs.camera, cs.width, cs.height, 0, 0, 0, 1, 0,
                              self.init_stack)),
             (K.shade_surface, (1, ps, prim, bu, bv, cs.geometry, self.mt, self.override, lt,
                                cs.lights.env_light, cs.lights.sun_rows, cs.environment, cfg, L, sh, 0,
@@ -182,9 +182,12 @@ class Tracer:
         return calls
 
     def trace(self, film: Film, sample_base: int, spp: int, seed: int) -> None:
-        """Add samples sample_base .. sample_base + spp - 1 of every pixel to film."""
+        """Add samples sample_base .. sample_base + spp - 1 of every pixel of film to it: the
+        whole rendered window, or the tile (a band of its rows) that film covers."""
         cs = self.cs
-        total = cs.width * cs.height * spp
+        assert film.width == cs.width and 0 <= film.first_row and film.first_row + film.height <= cs.height, \
+            "a film outside the rendered window"
+        total = film.width * film.height * spp
         for first in range(0, total, self.batch):
             n = min(self.batch, total - first)
             self._trace_batch(film, first, n, sample_base, seed)
@@ -192,10 +195,10 @@ class Tracer:
     def _trace_batch(self, film: Film, first: int, n: int, sample_base: int, seed: int) -> None:
         cs, ps, sh = self.cs, self.ps, self.sh
         self.L[:n] = 0.0
-        K.start_paths(ps, self.pixel_of_pid, cs.camera, cs.width, cs.height, seed, first, n, sample_base,
-                      self.init_stack)
+        K.start_paths(ps, self.pixel_of_pid, cs.camera, film.width, film.height, film.first_row, seed, first,
+                      n, sample_base, self.init_stack)
         if self.aovs:
-            self._start_aovs(first, n, sample_base)
+            self._start_aovs(first, n, sample_base, film.width * film.height)
         live = n
         while live > 0:
             prim, bu, bv = self.isect.intersect(ps.o[:live], ps.d[:live], ps.tmax[:live])
@@ -217,13 +220,12 @@ class Tracer:
         film_aov = film.ensure_aov(self.aov_columns) if self.aovs else self.no_aov
         K.splat(n, self.L, self.pixel_of_pid, film.sum, film.sq, film.n, film.nonfinite, film.alpha, film_aov)
 
-    def _start_aovs(self, first: int, n: int, sample_base: int) -> None:
+    def _start_aovs(self, first: int, n: int, sample_base: int, pixels: int) -> None:
         """The passes' per-path scratch: feature throughput 1, and which paths are their
-        pixel's sample 0 (linear index k is sample sample_base + k // pixels, as in
-        start_paths)."""
+        pixel's sample 0 (linear index k is sample sample_base + k // pixels, pixels in the
+        tile, as in start_paths)."""
         L = self.L
         L[:n, AOV_FEAT_T:AOV_FEAT_T + 3] = 1.0
-        pixels = self.cs.width * self.cs.height
         sample = sample_base + np.arange(first, first + n) // pixels
         L[:n, AOV_SAMPLE0] = sample == 0
 
