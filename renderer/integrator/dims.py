@@ -10,6 +10,8 @@ CAMERA_DIMS = 4  # the sample's position in its pixel, then on the lens; the pat
 # its two dimensions stay reserved)
 LENS_DIM = 2  # the two of the point on the lens (spent by every camera, used by thin lenses)
 SHADOW_DIMS = 64  # a shadow ray's own tracking through media
+NEE_DIMS = 5  # a surface's light sample: the light pick, the point on it, the direction (environment)
+BSDF_DIMS = 4  # a surface's BSDF sample: the lobe pick and three for the direction
 MEDIUM_NEE_DIMS = 2 + SHADOW_DIMS  # a medium vertex's light connection and its shadow ray
 
 # A homogeneous medium segment with a next-event vertex, as offsets from the path's counter

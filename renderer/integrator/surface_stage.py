@@ -53,7 +53,7 @@ from .config import (
     SAMPLING_BSDF,
     SAMPLING_NEE,
 )
-from .dims import SHADOW_DIMS
+from .dims import BSDF_DIMS, NEE_DIMS, SHADOW_DIMS
 from .media_api import stack_push, stack_remove
 from .paths import (
     ALPHA,
@@ -184,15 +184,23 @@ def shade_surface(n, ps, prim, bu, bv, geo, mt, override, lt, env_light, sun_row
         ts, tt = onb(sn)
         wo = to_local(neg(d), ts, tt, sn)
 
-        if sampling != SAMPLING_BSDF and cdf.shape[0] > 1:
+        # Dimensions: the light sample's, then the BSDF sample's, then a shadow ray's block
+        # when one is traced, so that the first bounce's light and lobe choices both fall
+        # in the stratified dimensions (kernels.rng.STRATIFIED_DIMS).
+        nee = sampling != SAMPLING_BSDF and cdf.shape[0] > 1
+        bsdf_dim = dim + NEE_DIMS if nee else dim
+        next_dim = bsdf_dim + BSDF_DIMS
+        if nee:
             col = shadow_pass_column(L, pid, depth, False, light_aovs)
-            s, dim = _surface_nee(lt, env, mt, m, front, x, ng, wo, ts, tt, sn, beta, sampling, pid, key,
-                                  dim, stack, sh, s, col)
+            s, traced = _surface_nee(lt, env, mt, m, front, x, ng, wo, ts, tt, sn, beta, sampling, pid, key,
+                                     dim, next_dim, stack, sh, s, col)
+            if traced:
+                next_dim += SHADOW_DIMS
 
         # BSDF sampling
-        wil, w, pdf, event = bsdf_sample(mt, m, front, wo, uniform(key, dim), uniform(key, dim + 1),
-                                         uniform(key, dim + 2), uniform(key, dim + 3))
-        dim += 4
+        wil, w, pdf, event = bsdf_sample(mt, m, front, wo, uniform(key, bsdf_dim), uniform(key, bsdf_dim + 1),
+                                         uniform(key, bsdf_dim + 2), uniform(key, bsdf_dim + 3))
+        dim = next_dim
         if event == EVENT_ABSORB or max3(w) <= 0.0:
             ps.alive[i] = PATH_DEAD
             continue
@@ -218,17 +226,17 @@ def shade_surface(n, ps, prim, bu, bv, geo, mt, override, lt, env_light, sun_row
 
 
 @inline_kernel
-def _surface_nee(lt, env, mt, m, front, x, ng, wo, ts, tt, sn, beta, sampling, pid, key, dim, stack, sh, s,
-                 col):
-    """Next-event estimation at surface point x: pick a light and a point on it, weigh the
-    connection by the BSDF and MIS, and write its shadow ray at index s when it carries
-    light (and to light pass column col). Returns (next shadow index, next dimension)."""
+def _surface_nee(lt, env, mt, m, front, x, ng, wo, ts, tt, sn, beta, sampling, pid, key, dim, shadow_dim,
+                 stack, sh, s, col):
+    """Next-event estimation at surface point x: pick a light and a point on it (dimensions
+    dim .. dim + NEE_DIMS - 1), weigh the connection by the BSDF and MIS, and write its
+    shadow ray at index s when it carries light (its tracking from shadow_dim on; and to
+    light pass column col). Returns (next shadow index, whether a shadow ray was written)."""
     cdf = lt[LT_CDF]  # what pick_light searches: L + 1 entries
     light = pick_light(cdf, uniform(key, dim))
     lp = light_point(lt, light, uniform(key, dim + 1), uniform(key, dim + 2))
     wi, dist, le, pdf, is_delta = connect_light_env(lt, env, light, lp, x, uniform(key, dim + 3),
                                                     uniform(key, dim + 4))
-    dim += 5
     p_light = pdf * light_pmf(lt, light)
     if p_light > 0.0 and max3(le) > 0.0:
         wil = to_local(wi, ts, tt, sn)
@@ -249,10 +257,9 @@ def _surface_nee(lt, env, mt, m, front, x, ng, wo, ts, tt, sn, beta, sampling, p
                 ws = scale(to, 1.0 / dist)
                 dist *= 0.9999
             gap = max(0.0, dot(sub(xo, x), ws))
-            emit_shadow(sh, s, xo, ws, dist, c, pid, key, dim, stack, gap, col)
-            s += 1
-            dim += SHADOW_DIMS
-    return s, dim
+            emit_shadow(sh, s, xo, ws, dist, c, pid, key, shadow_dim, stack, gap, col)
+            return s + 1, True
+    return s, False
 
 
 @inline_kernel
