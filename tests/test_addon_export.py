@@ -15,6 +15,7 @@ import pytest
 from bpy_helpers import run_blender, shared_numba_cache
 
 from renderer.scenefile import load_scene
+from renderer.shading.program import BIND_FIELDS
 
 pytestmark = pytest.mark.bpy
 
@@ -101,8 +102,8 @@ def build_materials():
     link(tree, texture.outputs["Color"], bsdf.inputs["Base Color"])
     link(tree, texture.outputs["Fac"], bsdf.inputs["Roughness"])
     m["textured"] = material
-    # A Checker as Mix Shader factor between a diffuse and an emission (emission cannot vary:
-    # it takes the Fac socket's own 0.5), and a Noise-mixed volume (homogeneous: folded).
+    # A Checker as Mix Shader factor between a diffuse and an emission (the program weighs
+    # both per point), and a Noise-mixed volume (homogeneous: folded).
     material, tree, out = node_material("Textured Mix")
     checker = tree.nodes.new("ShaderNodeTexChecker")
     red = tree.nodes.new("ShaderNodeBsdfDiffuse"); red.inputs["Color"].default_value = (1, 0, 0, 1)
@@ -546,15 +547,18 @@ def test_unsupported_node_warns_once_and_uses_socket_values(exported):
     assert plastic.color == pytest.approx((0.1, 0.6, 0.3)) and plastic.roughness == pytest.approx(0.7)
 
 
-def test_textured_mix_factor_is_a_program_emission_and_volume_use_the_socket_value(exported):
+def test_textured_mix_factor_is_a_program_for_lobes_and_emission_volume_uses_the_socket_value(exported):
     scene = exported["main_scene"]
     mat = material(scene, "Textured Mix")
     assert mat.program is not None and len(mat.program.code) > 0
     assert mat.program.attributes == ["generated"]  # the Checker's default coordinates
-    assert {int(row[4]) for row in mat.program.bindings} == {1}  # weight scales only
-    assert mat.emission == pytest.approx((1.0, 1.0, 1.0))  # 2 x the Fac socket's 0.5
-    assert "Material 'Textured Mix', node 'Textured Factor': emission cannot vary over a surface yet: " \
-           "it is mixed by the Fac socket's own value" in exported["main"]["warnings"]
+    emission_field = BIND_FIELDS.index("emission")
+    rows = [tuple(int(v) for v in row) for row in mat.program.bindings]
+    assert {row[4] for row in rows if row[1] != emission_field} == {1}  # lobe weight scales
+    # One emission row (no lobe) sets the radiance per point: 2 x the checker's factor.
+    assert [(row[0], row[4]) for row in rows if row[1] == emission_field] == [(-1, 0)]
+    assert mat.emission == pytest.approx((1.0, 1.0, 1.0))  # light sampling's reference radiance
+    assert not any("emission cannot vary" in w for w in exported["main"]["warnings"])
     box = mesh(scene, "Textured Mix Box")
     assert box.attributes and box.attributes[0].name == "generated"
     assert box.attributes[0].values.shape == (12, 3, 3)

@@ -211,6 +211,19 @@ def case_nodes(tree, name):
         return n("ShaderNodeVertexColor").outputs["Color"]  # the render colour attribute
     if name == "uv":
         return texture_vector(tree, "UV")
+    if name.startswith("normal_map_"):
+        node = n("ShaderNodeNormalMap")
+        node.space, strength = {{"tangent": ("TANGENT", 0.7), "tangent_strong": ("TANGENT", 1.6),
+                                 "world": ("WORLD", 0.6), "blender_world": ("BLENDER_WORLD", 1.0)}}[name[11:]]
+        node.inputs["Strength"].default_value = strength
+        color = n("ShaderNodeCombineXYZ")  # a colour that tilts the normal across the plane
+        sep = n("ShaderNodeSeparateXYZ")
+        link(texture_vector(tree, "UV"), sep.inputs["Vector"])
+        link(sep.outputs["X"], color.inputs["X"])
+        link(sep.outputs["Y"], color.inputs["Y"])
+        color.inputs["Z"].default_value = 0.8
+        link(color.outputs["Vector"], node.inputs["Color"])
+        return node.outputs["Normal"]
     raise ValueError(name)
 
 
@@ -269,8 +282,11 @@ def haze_values(material, emission, uv):
     corners = np.array([[0, 0], [1, 0], [0, 1]], np.float32)
     obj_pos = np.concatenate([corners * 2 - 1, np.zeros((3, 1), np.float32)], axis=1)
     col = np.concatenate([corners, np.full((3, 1), 0.5, np.float32)], axis=1)
+    # The plane's MikkTSpace frame: UVs run along x and y, so tangent +x, bitangent sign +1.
+    tangent, sign = np.tile([1.0, 0.0, 0.0], (1, 3, 1)), np.ones((1, 3, 1))
     attributes = [CornerAttribute("uv:", corners[None]), CornerAttribute("object", obj_pos[None]),
-                  CornerAttribute("attr:Col", col[None]), CornerAttribute("attr:", col[None])]
+                  CornerAttribute("attr:Col", col[None]), CornerAttribute("attr:", col[None]),
+                  CornerAttribute("tangent:", tangent), CornerAttribute("tangent_sign:", sign)]
     mesh = Mesh("t", obj_pos, np.array([[0, 1, 2]], np.int32), ["m"], attributes=attributes)
     m = Material("m", lobes=[Lobe("diffuse")], program=program)
     tables = build_shading_tables([m], [mesh], images.list(), 1)
@@ -310,6 +326,7 @@ CASES = (
     + [f"noise_{k}" for k in ("fbm", "detail", "distortion", "color", "raw")]
     + ["hsv", "separate_hsv", "combine_hsv", "fresnel", "layer_fresnel", "layer_facing", "attribute",
        "color_attribute"]
+    + [f"normal_map_{k}" for k in ("tangent", "tangent_strong", "world", "blender_world")]
     + [f"mapping_{k}" for k in ("point", "texture", "vector", "normal")]
     + [f"gradient_{k}" for k in ("linear", "quadratic", "easing", "diagonal", "radial", "quadratic_sphere",
                                  "spherical")]

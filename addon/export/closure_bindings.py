@@ -1,6 +1,7 @@
 """Closure inputs driven by shader programs: the registers a closure handler binds to lobe
-fields (colour, roughness) and the per-point weights of a Mix Shader whose factor varies.
-The handlers in node_closures call these; the graph's ProgramBuilder emits the operations."""
+fields (colour, roughness, IOR), varying emission, and the per-point weights of a Mix
+Shader whose factor varies (or of Principled's Alpha). The handlers in node_closures and
+node_principled call these; the graph's ProgramBuilder emits the operations."""
 
 from __future__ import annotations
 
@@ -17,14 +18,8 @@ def mix_by_program(graph: ClosureGraph, node, scope: tuple, factor) -> list:
     """A Mix Shader whose factor varies: each side's weights are scaled per shading point
     by the program's clamped factor f (second input) and 1 - f (first input)."""
     f, g = factor_pair(graph.program, factor)
-    # Emission cannot vary (the light table is constant): it takes the socket's own value.
-    f0 = min(max(float(graph.unlinked_value(node.inputs[0], 1)[0, 0]), 0.0), 1.0)
-    first = [_scaled(t, g, 1.0 - f0) for t in graph.closure(node.inputs[1], scope)]
-    second = [_scaled(t, f, f0) for t in graph.closure(node.inputs[2], scope)]
-    if any(t.kind == "emission" for t in first + second):
-        graph.warn_node(node, "emission cannot vary over a surface yet: it is mixed by the Fac "
-                              "socket's own value")
-    return first + second
+    first, second = graph.closure(node.inputs[1], scope), graph.closure(node.inputs[2], scope)
+    return scaled_by(first, g) + scaled_by(second, f)
 
 
 def factor_pair(p, factor) -> tuple:
@@ -33,10 +28,34 @@ def factor_pair(p, factor) -> tuple:
     return f, p.emit("math", 1, p.const(1.0), f, p.const(0.0), i0=MATH_OPS.index("SUBTRACT"))
 
 
-def _scaled(term, reg, constant: float):
-    if term.kind == "emission":
-        return replace(term, weight=term.weight * constant)
-    return replace(term, scales=term.scales + (reg,))
+def scaled_by(terms: list, reg) -> list:
+    """The terms with their weights scaled per shading point by scalar register reg."""
+    return [replace(t, scales=t.scales + (reg,)) for t in terms]
+
+
+def emission_binds(read: Inputs, color: str, strength: str) -> tuple:
+    """(("emission", register of colour x strength),) when a program drives either input,
+    else () (the term's weight is then the constant radiance)."""
+    color_reg, strength_reg = read.varying(color), read.varying(strength)
+    if color_reg is None and strength_reg is None:
+        return ()
+    p = read.program
+    c = color_reg if color_reg is not None else p.const(read(color)[:3])
+    s = p.widen(strength_reg if strength_reg is not None else p.const(read(strength)))
+    one = p.const(1.0)
+    return (("emission", p.emit("vector_math", 3, c, s, c, one, i0=VECTOR_OPS.index("MULTIPLY"))),)
+
+
+def normal_bind(read: Inputs) -> tuple:
+    """(("normal", register),) when a program drives the BSDF's Normal input (a Normal Map):
+    the shading normal of the material's lobes per shading point."""
+    reg = read.varying("Normal")
+    return () if reg is None else (("normal", reg),)
+
+
+def ior_bind(read: Inputs, name: str = "IOR") -> tuple:
+    reg = read.varying(name)
+    return () if reg is None else (("ior", reg),)
 
 
 def color_binds(read: Inputs, name: str = "Color") -> tuple:

@@ -17,6 +17,7 @@ import warnings
 import numpy as np
 
 from renderer.scene import LOBE_KINDS, Lobe, Material, Medium
+from renderer.shading.names import VECTOR_OPS
 from renderer.shading.program import BIND_FIELDS, BIND_SCALE, BIND_SET
 
 from .images import ImageLibrary
@@ -81,18 +82,39 @@ def choose_emission(front: np.ndarray, back: np.ndarray, subject: str, messages:
 
 
 def program_bindings(lobe_terms: list[Term]) -> list[tuple[int, int, int, int, int]]:
-    """Rows of ShaderProgram.bindings for the lobes made from `lobe_terms`, in order."""
+    """Rows of ShaderProgram.bindings for the lobes made from `lobe_terms`, in order. A
+    bound Normal is the material's (one row, lobe -1: see renderer.shading.program)."""
     rows = []
     for lobe, term in enumerate(lobe_terms):
         for field, reg in term.binds:
+            if field == "normal":
+                if not any(row[1] == BIND_FIELDS.index(field) for row in rows):
+                    rows.append((-1, BIND_FIELDS.index(field), 3, reg.index, BIND_SET))
+                continue
             rows.append((lobe, BIND_FIELDS.index(field), reg.width, reg.index, BIND_SET))
         for reg in term.scales:
             rows.append((lobe, BIND_FIELDS.index("weight"), 3, reg.index, BIND_SCALE))
     return rows
 
 
+def program_emission(terms: list[Term], sides: str, program) -> tuple[int, int, int, int, int]:
+    """The binding row of a varying emission: the program sums the emission terms on
+    `sides` (each its radiance register or constant weight, times its scale registers)."""
+    side_terms = [t for t in terms if t.kind == "emission" and t.sides in (sides, "both")]
+    one, total = program.const(1.0), None
+    multiply, add = VECTOR_OPS.index("MULTIPLY"), VECTOR_OPS.index("ADD")
+    for term in side_terms:
+        reg = dict(term.binds).get("emission") or program.const(term.weight)
+        for scale in term.scales:
+            reg = program.emit("vector_math", 3, reg, program.widen(scale), reg, one, i0=multiply)
+        total = reg if total is None else program.emit("vector_math", 3, total, reg, reg, one, i0=add)
+    return (-1, BIND_FIELDS.index("emission"), 3, total.index, BIND_SET)
+
+
 def surface_material(name: str, terms: list[Term], messages: Messages, program=None) -> Material:
-    """`program` (a ProgramBuilder) holds the registers the terms' bindings name."""
+    """`program` (a ProgramBuilder) holds the registers the terms' bindings name. A varying
+    emission gets Material.emission 1 (what light sampling weighs the emitter by) and a
+    binding that sets the radiance per shading point (renderer.shading.program)."""
     subject = material_subject(name)
     if any(term.kind in VOLUME_KINDS for term in terms):
         messages.warn(subject, "a volume shader connected to the Surface output is ignored (as in Cycles)")
@@ -100,6 +122,12 @@ def surface_material(name: str, terms: list[Term], messages: Messages, program=N
     lobes = [lobe_from_term(t) for t in lobe_terms]
     emission, emission_sides = choose_emission(*emission_per_side(terms), subject, messages)
     bindings = program_bindings(lobe_terms)
+    if len({reg for t in lobe_terms for field, reg in t.binds if field == "normal"}) > 1:
+        messages.warn(subject, "closures with different Normal inputs share the first one")
+    if program is not None and any(t.kind == "emission" and (t.binds or t.scales) for t in terms):
+        sides = "front" if emission_sides == "both" else emission_sides
+        bindings.append(program_emission(terms, sides, program))
+        emission = (1.0, 1.0, 1.0)
     shader = program.build(bindings) if program is not None and bindings else None
     return Material(name, lobes=close_open_sides(lobes), emission=emission, emission_sides=emission_sides,
                     program=shader)

@@ -64,6 +64,8 @@ def corner_attribute(mesh, name: str, corners: np.ndarray, positions: np.ndarray
         return read_array(layer.uv, "vector", len(mesh.loops), 2, np.float32)[corners]
     if name.startswith("attr:"):
         return named_attribute(mesh, name[5:], corners, topology)
+    if name.startswith(("tangent:", "tangent_sign:")):
+        return tangent_attribute(mesh, name, corners)
     local = positions[topology]
     if name == "object":
         return local
@@ -74,6 +76,27 @@ def corner_attribute(mesh, name: str, corners: np.ndarray, positions: np.ndarray
         size = np.where(size != 0.0, size, np.float32(1.0))
         return (local - (location - size)) / (2.0 * size)
     return None
+
+
+def tangent_attribute(mesh, name: str, corners: np.ndarray):
+    """MikkTSpace tangents of a UV map ("tangent:<map>", (T, 3, 3), object space) or their
+    bitangent signs ("tangent_sign:<map>", (T, 3, 1)), per corner, as Blender computes them
+    for Cycles (mesh.calc_tangents); None without the UV map or where Blender cannot compute
+    them (the Normal Map node then keeps the mesh's normal, as Cycles does)."""
+    uv_name = name.split(":", 1)[1]
+    layer = mesh.uv_layers.get(uv_name) if uv_name else active_render_uv(mesh)
+    if layer is None:
+        return None
+    try:
+        mesh.calc_tangents(uvmap=layer.name)
+    except RuntimeError:
+        return None
+    try:
+        if name.startswith("tangent:"):
+            return read_array(mesh.loops, "tangent", len(mesh.loops), 3, np.float32)[corners]
+        return read_array(mesh.loops, "bitangent_sign", len(mesh.loops), 1, np.float32)[corners][:, :, None]
+    finally:
+        mesh.free_tangents()
 
 
 ATTRIBUTE_FIELDS = {"FLOAT_COLOR": ("color", 4), "BYTE_COLOR": ("color", 4), "FLOAT_VECTOR": ("vector", 3),
@@ -175,8 +198,18 @@ def transform(geometry: LocalGeometry, matrix: np.ndarray) -> WorldGeometry:
     mirrored = np.linalg.det(linear) < 0.0
     triangles = geometry.triangles[:, ::-1].copy() if mirrored else geometry.triangles
     topology = geometry.topology[:, ::-1].copy() if mirrored else geometry.topology
-    attributes = {k: (v[:, ::-1].copy() if mirrored else v) for k, v in geometry.attributes.items()}
+    attributes = {k: world_attribute(k, v, linear, mirrored) for k, v in geometry.attributes.items()}
     return WorldGeometry(vertices, triangles, normals, geometry.slots, topology, attributes)
+
+
+def world_attribute(name: str, values: np.ndarray, linear: np.ndarray, mirrored: bool) -> np.ndarray:
+    """A corner attribute in world space: tangents turn with the object, and a mirroring
+    matrix flips the bitangent sign (the world-space cross product flips with it)."""
+    if name.startswith("tangent:"):
+        values = values @ linear.T.astype(np.float32)
+    elif name.startswith("tangent_sign:") and mirrored:
+        values = -values
+    return values[:, ::-1].copy() if mirrored else values
 
 
 def edge_problems(topology: np.ndarray) -> tuple[int, int]:

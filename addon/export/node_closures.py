@@ -6,7 +6,8 @@ face and merges the two lists where they agree. Mix and Add Shader combine the t
 their inputs. Closures Haze has no model for are rendered as a Diffuse BSDF of their Color
 input (fallback_closure, warned).
 
-CLOSURE_HANDLERS and COMBINE_HANDLERS map node type names to handlers.
+CLOSURE_HANDLERS and COMBINE_HANDLERS map node type names to handlers (the Principled
+BSDF's is in node_principled, which nodes.py adds).
 """
 
 from __future__ import annotations
@@ -18,7 +19,14 @@ from typing import Protocol
 
 import numpy as np
 
-from .closure_bindings import capped_color, color_binds, factor_pair, mix_by_program, roughness_bind
+from .closure_bindings import (
+    color_binds,
+    emission_binds,
+    ior_bind,
+    mix_by_program,
+    normal_bind,
+    roughness_bind,
+)
 from .node_values import BACK, FRONT, SIDE_NAMES, ValueGraph
 
 
@@ -189,7 +197,7 @@ def warn_ignored_distribution(read: Inputs, node) -> bool:
 def shader_diffuse(read: Inputs) -> list[Term]:
     if read("Roughness") > 0.0:
         read.warn("Roughness (Oren-Nayar) is ignored; Haze's diffuse lobe is Lambertian")
-    binds = color_binds(read)
+    binds = color_binds(read) + normal_bind(read)
     return [Term("diffuse", np.ones(3), color=rgb(np.maximum(read("Color"), 0.0)), binds=binds)]
 
 
@@ -198,7 +206,7 @@ def shader_glossy(read: Inputs) -> list[Term]:
     multiscatter = warn_ignored_distribution(read, node)
     if read("Anisotropy") != 0.0:
         read.warn("Anisotropy is ignored")
-    binds = color_binds(read) + roughness_bind(read)
+    binds = color_binds(read) + roughness_bind(read) + normal_bind(read)
     roughness = saturate(read("Roughness"))
     kind = "rough_conductor" if any(f == "roughness" for f, _ in binds) else reflection_kind(roughness)
     return [Term(kind, np.ones(3), color=rgb(np.maximum(read("Color"), 0.0)), roughness=roughness,
@@ -252,10 +260,11 @@ def shader_glass(read: Inputs) -> list[Term]:
     roughness = saturate(read("Roughness"))
     if roughness > 0.0:
         read.warn(f"rough glass (Roughness {roughness:g}) is rendered as smooth glass")
-    ior = max(read("IOR"), 1e-5)
     color = rgb(np.maximum(read("Color"), 0.0))
     binds = color_binds(read)
     binds += tuple(("tint", reg) for _, reg in binds)  # Glass BSDF tints reflection and refraction alike
+    binds += ior_bind(read) + normal_bind(read)
+    ior = max(read("IOR"), 1e-5)
     return [Term("dielectric", np.ones(3), color=color, ior=ior, tint=color, binds=binds)]
 
 
@@ -265,22 +274,11 @@ def shader_transparent(read: Inputs) -> list[Term]:
 
 
 def shader_emission(read: Inputs) -> list[Term]:
+    binds = emission_binds(read, "Color", "Strength")
+    if binds:  # the program gives the radiance; the weight only marks the term as emitting
+        return [Term("emission", np.ones(3), binds=binds)]
     radiance = np.asarray(read("Color")) * read("Strength")
     return [Term("emission", np.broadcast_to(radiance, (3,)).astype(np.float64))]
-
-
-def principled_ignored_inputs(read: Inputs) -> list[str]:
-    """Inputs of the Principled BSDF set to something Haze cannot render."""
-    checks = [
-        ("Coat Weight", read("Coat Weight") > 0.0),
-        ("Sheen Weight", read("Sheen Weight") > 0.0),
-        ("Subsurface Weight (rendered as diffuse)", read("Subsurface Weight") > 0.0),
-        ("Anisotropic", read("Anisotropic") > 0.0),
-        ("Thin Film Thickness", read("Thin Film Thickness") > 0.0),
-        ("Diffuse Roughness", read("Diffuse Roughness") > 0.0),
-        ("Specular Tint above 1 (clamped to 1)", np.any(np.asarray(read("Specular Tint")) > 1.0)),
-    ]
-    return [name for name, ignored in checks if ignored]
 
 
 def adjusted_specular_ior(ior: float, level: float) -> float:
@@ -291,64 +289,6 @@ def adjusted_specular_ior(ior: float, level: float) -> float:
     root = math.sqrt(min(max(f0, 0.0), 0.9999))
     eta = (1.0 + root) / (1.0 - root)
     return 1.0 / eta if ior < 1.0 else eta
-
-
-def shader_principled(read: Inputs) -> list[Term]:
-    """Cycles' Principled BSDF (svm/closure.h) as Haze lobes: alpha, metal (F82-tint Fresnel of
-    Base Color and Specular Tint), glass (refraction tinted by sqrt(Base Color), reflection
-    untinted), then the dielectric specular layer (F0 x Specular Tint) over diffuse (Haze's
-    "plastic"). Multiscatter GGX (the node's default) compensates the metal's and the
-    layer's energy as Cycles does."""
-    ignored = principled_ignored_inputs(read)
-    if ignored:
-        read.warn("ignored inputs: " + ", ".join(ignored))
-    base_reg, rough = read.varying("Base Color"), roughness_bind(read)
-    metal_reg, glass_reg = read.varying("Metallic"), read.varying("Transmission Weight")
-    base = np.maximum(read("Base Color"), 0.0)
-    specular_tint = rgb(np.clip(read("Specular Tint"), 0.0, 1.0))
-    multiscatter = warn_ignored_distribution(read, read.node)
-    metallic, alpha = saturate(read("Metallic")), saturate(read("Alpha"))
-    roughness, transmission = saturate(read("Roughness")), saturate(read("Transmission Weight"))
-    ior = max(read("IOR"), 1e-5)
-    terms: list[Term] = []
-    weight = 1.0
-    if alpha < 1.0:
-        terms.append(Term("transparent", np.full(3, 1.0 - alpha)))
-        weight = alpha
-    emission = np.asarray(read("Emission Color")) * read("Emission Strength")
-    if np.any(emission != 0.0):
-        terms.append(Term("emission", np.broadcast_to(emission * weight, (3,)).astype(np.float64)))
-    under = ()  # weight scales of the layers under the metal when Metallic varies
-    if metallic > 0.0 or metal_reg is not None:
-        binds = rough + (() if base_reg is None else (("color", capped_color(read, base_reg)),))
-        kind = "rough_conductor" if rough else reflection_kind(roughness)
-        metal_weight, over = weight * metallic, ()
-        if metal_reg is not None:  # the program weighs the metal by m and what is under by 1 - m
-            (m, rest), metal_weight = factor_pair(read.program, metal_reg), weight
-            over, under = (m,), (rest,)
-        terms.append(Term(kind, np.full(3, metal_weight),
-                          color=rgb(np.minimum(base, 1.0)), roughness=roughness, fresnel="f82",
-                          tint=specular_tint, binds=binds, scales=over, multiscatter=multiscatter))
-        weight *= 1.0 if metal_reg is not None else 1.0 - metallic
-    if (transmission > 0.0 or glass_reg is not None) and weight > 0.0:
-        if roughness > 0.0 or rough:
-            read.warn(f"rough transmission (Roughness {roughness:g}) is rendered as smooth glass")
-        binds = () if base_reg is None else (("color", capped_color(read, base_reg, 0.5)),)
-        glass_weight, over = weight * transmission, under
-        if glass_reg is not None:  # as the metal: glass by t, the dielectric layer by 1 - t
-            (t, rest), glass_weight = factor_pair(read.program, glass_reg), weight
-            over, under = under + (t,), under + (rest,)
-        terms.append(Term("dielectric", np.full(3, glass_weight),
-                          color=rgb(np.sqrt(np.minimum(base, 1.0))), ior=ior, binds=binds, scales=over))
-        weight *= 1.0 if glass_reg is not None else 1.0 - transmission
-    if weight > 0.0:
-        eta = adjusted_specular_ior(ior, max(read("Specular IOR Level"), 0.0))
-        kind = "diffuse" if eta == 1.0 else "plastic"
-        binds = rough + (() if base_reg is None else (("color", base_reg),))
-        layer = {} if kind == "diffuse" else {"tint": specular_tint, "multiscatter": multiscatter}
-        terms.append(Term(kind, np.full(3, weight), color=rgb(base), roughness=roughness, ior=eta,
-                          binds=binds, scales=under, **layer))
-    return terms
 
 
 def shader_background(read: Inputs) -> list[Term]:
@@ -408,7 +348,6 @@ def shader_volume_emission(read: Inputs) -> list[Term]:
 
 
 CLOSURE_HANDLERS: dict[str, Callable[[Inputs], list[Term]]] = {
-    "ShaderNodeBsdfPrincipled": shader_principled,
     "ShaderNodeBsdfDiffuse": shader_diffuse,
     "ShaderNodeBsdfGlossy": shader_glossy,
     "ShaderNodeBsdfAnisotropic": shader_glossy,

@@ -26,9 +26,15 @@ import numpy as np
 
 from .messages import Messages, node_subject
 from .node_closures import CLOSURE_HANDLERS, COMBINE_HANDLERS, Inputs, Term, fallback_closure, merge_sides
+from .node_principled import shader_principled
 from .node_program import PROGRAM_HANDLERS, VARYING_SOURCES
+from .node_program_normals import NORMAL_HANDLERS, NORMAL_SOURCES
 from .node_values import BACK, FRONT, VALUE_HANDLERS, ValueHandler, convert, sided, socket_width
 from .program_builder import ProgramBuilder, Reg
+
+SURFACE_HANDLERS = {**CLOSURE_HANDLERS, "ShaderNodeBsdfPrincipled": shader_principled}
+COMPILED = {**PROGRAM_HANDLERS, **NORMAL_HANDLERS}  # varying nodes compiled into programs
+VARYING = VARYING_SOURCES | NORMAL_SOURCES
 
 
 class ShaderGraph:
@@ -43,6 +49,7 @@ class ShaderGraph:
         self.images = images  # images.ImageLibrary, or None: no Image Texture is compiled
         # Whether inputs may compile to programs (material surfaces; worlds and volumes not yet).
         self.programs = images is not None
+        self.compiled = COMPILED  # node handlers by type (a world's see directions: world_program)
         self._varying: dict[tuple, bool] = {}
         self._registers: dict[tuple, Reg | None] = {}
 
@@ -143,9 +150,9 @@ class ShaderGraph:
         return self._varying[key]
 
     def _find_varying(self, node, scope: tuple) -> bool:
-        if node.mute or node.bl_idname not in PROGRAM_HANDLERS and node.bl_idname != "NodeReroute":
+        if node.mute or node.bl_idname not in self.compiled and node.bl_idname != "NodeReroute":
             return False
-        if node.bl_idname in VARYING_SOURCES:
+        if node.bl_idname in VARYING:
             return True
         for socket in node.inputs:
             source = self.link_source(socket)
@@ -164,7 +171,7 @@ class ShaderGraph:
             return self.input_varying(node.inputs[0], scope)
         key = (node.as_pointer(), output.identifier, tuple(n.as_pointer() for n in scope))
         if key not in self._registers:
-            self._registers[key] = PROGRAM_HANDLERS[node.bl_idname](self, node, output, scope)
+            self._registers[key] = self.compiled[node.bl_idname](self, node, output, scope)
         reg = self._registers[key]
         return None if reg is None else self.program.convert(reg, output.type, socket.type)
 
@@ -202,7 +209,7 @@ class ShaderGraph:
             return self._group_input_closure(node, output, scope)
         if node.bl_idname in COMBINE_HANDLERS:
             return COMBINE_HANDLERS[node.bl_idname](self, node, scope)
-        handler = CLOSURE_HANDLERS.get(node.bl_idname)
+        handler = SURFACE_HANDLERS.get(node.bl_idname)
         if handler is None:
             return fallback_closure(self, node, scope)
         front = handler(Inputs(self, node, scope, FRONT))

@@ -63,12 +63,13 @@ def resolve_shadows(count, sh, occluded, L):
 
 
 @kernel
-def walk_shadows(count, sh, prim, thit, remaining, geo, mt, md, cfg, L, grid_md):
+def walk_shadows(count, sh, prim, thit, remaining, geo, mt, override, md, cfg, L, grid_md):
     """One step of shadow rays that may pass interfaces. thit is the hit distance where
     prim >= 0; remaining is each ray's length left to its light. A ray that reaches its end
     adds its contribution; one that hits an opaque surface dies; one that hits an interface
     or a transparent lobe continues past it with its medium stack updated. grid_md: as for
-    shadow_media."""
+    shadow_media. override[s] >= 0 (scenes with shader programs, renderer.shading.shadows;
+    empty otherwise): the row of mt to read ray s's hit material from."""
     has_media = cfg[CFG_HAS_MEDIA] != 0
     for s in range(count):
         o = load3(sh.o, s)
@@ -95,6 +96,8 @@ def walk_shadows(count, sh, prim, thit, remaining, geo, mt, md, cfg, L, grid_md)
         ng = load3(geo.ng, p)
         front = dot(d, ng) < 0.0
         m = geo.material[p]
+        if s < override.shape[0] and override[s] >= 0:
+            m = override[s]
         # A pure emitter (no lobes) is opaque; anything else lets through its transparent part.
         opaque_emitter = geo.light[p] >= 0 and not bsdf_has_lobes(mt, m, front)
         tint = (0.0, 0.0, 0.0) if opaque_emitter else _transparency(mt, m, front)

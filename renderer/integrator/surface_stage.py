@@ -33,6 +33,7 @@ from ..lights.sample import (
     triangle_light_pdf,
 )
 from ..lights.table import LT_CDF
+from ..shading.normals import bump_shadowing
 from .aovs import (
     aov_after_medium,
     aov_background,
@@ -76,16 +77,17 @@ MAX_CROSSINGS = 256  # interfaces a path may pass before it is ended (guards ope
 
 
 @kernel
-def shade_surface(n, ps, prim, bu, bv, geo, mt, override, lt, env_light, sun_rows, env, cfg, L, sh, s, cam,
-                  mist):
+def shade_surface(n, ps, prim, bu, bv, geo, mt, override, program_out, lt, env_light, sun_rows, env, cfg, L,
+                  sh, s, cam, mist):
     """Shade the closest hits of paths 0..n-1 that are PATH_ACTIVE (prim -1 = escaped;
     ps.tmax holds the hit distance): emission, next-event estimation, BSDF sampling, Russian
     roulette. Writes new rays into ps, kills finished paths, appends shadow rays to sh from
     index s. env: the environment map's tables, None for a constant world. cam (the camera
     tuple) and mist (start, 1 / depth, falloff) serve the Mist pass. override[i] >= 0
     (renderer.shading.stage, only in scenes with shader programs; empty otherwise) is the
-    row of mt to shade path i with instead of its triangle's material. Returns the number
-    of shadow rays written in all."""
+    row of mt to shade path i with instead of its triangle's material; program_out[i, 0:3]
+    scales the radiance of the emitter it hit and program_out[i, 3:6], when not zero, is its
+    shading normal. Returns the number of shadow rays written in all."""
     max_bounces = cfg[CFG_MAX_BOUNCES]
     sampling = cfg[CFG_SAMPLING]
     transparent = cfg[CFG_FILM_TRANSPARENT] != 0
@@ -140,12 +142,15 @@ def shade_surface(n, ps, prim, bu, bv, geo, mt, override, lt, env_light, sun_row
         ng = load3(geo.ng, p)
         front = dot(d, ng) < 0.0
         m = geo.material[p]
-        if i < override.shape[0] and override[i] >= 0:
+        programmed = i < override.shape[0] and override[i] >= 0
+        if programmed:
             m = override[i]
 
         light = geo.light[p]
         if light >= 0:
             le = triangle_emission(lt, light, front)
+            if programmed:
+                le = mul(le, load3(program_out, i))
             if max3(le) > 0.0:
                 w = 1.0
                 if ps.mis_pdf[i] > 0.0 or sampling == SAMPLING_NEE:
@@ -173,6 +178,11 @@ def shade_surface(n, ps, prim, bu, bv, geo, mt, override, lt, env_light, sun_row
             ps.dim[i] = dim
             continue
         sn = _shading_normal(geo, p, b0, b1, b2, ng)
+        sn_mesh = sn
+        bumped = programmed and (program_out[i, 3] != 0.0 or program_out[i, 4] != 0.0 or
+                                 program_out[i, 5] != 0.0)
+        if bumped:  # a program's normal (Normal Map into a BSDF's Normal)
+            sn = (float(program_out[i, 3]), float(program_out[i, 4]), float(program_out[i, 5]))
         if aov_open:
             aov_surface(L, pid, mt, m, front, x, sn if front else neg(sn), depth, beta, cam, mist)
         if light_aovs and depth == 0:
@@ -193,7 +203,7 @@ def shade_surface(n, ps, prim, bu, bv, geo, mt, override, lt, env_light, sun_row
         if nee:
             col = shadow_pass_column(L, pid, depth, False, light_aovs)
             s, traced = _surface_nee(lt, env, mt, m, front, x, ng, wo, ts, tt, sn, beta, sampling, pid, key,
-                                     dim, next_dim, stack, sh, s, col)
+                                     dim, next_dim, stack, sh, s, col, sn_mesh, bumped)
             if traced:
                 next_dim += SHADOW_DIMS
 
@@ -210,6 +220,8 @@ def shade_surface(n, ps, prim, bu, bv, geo, mt, override, lt, env_light, sun_row
             ps.dim[i] = dim
             continue
         wi = normalize(to_world(wil, ts, tt, sn))
+        if bumped:
+            beta = scale(beta, bump_shadowing(sn_mesh, sn, wi))
         # Crossing to the other side of the geometric surface enters or leaves its medium.
         if (dot(wi, ng) > 0.0) != front:
             _update_stack(ps, i, geo, p, front)
@@ -227,11 +239,13 @@ def shade_surface(n, ps, prim, bu, bv, geo, mt, override, lt, env_light, sun_row
 
 @inline_kernel
 def _surface_nee(lt, env, mt, m, front, x, ng, wo, ts, tt, sn, beta, sampling, pid, key, dim, shadow_dim,
-                 stack, sh, s, col):
+                 stack, sh, s, col, sn_mesh, bumped):
     """Next-event estimation at surface point x: pick a light and a point on it (dimensions
     dim .. dim + NEE_DIMS - 1), weigh the connection by the BSDF and MIS, and write its
     shadow ray at index s when it carries light (its tracking from shadow_dim on; and to
-    light pass column col). Returns (next shadow index, whether a shadow ray was written)."""
+    light pass column col). Returns (next shadow index, whether a shadow ray was written).
+    bumped: a program set the shading normal sn (sn_mesh the mesh's own), whose shadowing
+    term weighs the connection."""
     cdf = lt[LT_CDF]  # what pick_light searches: L + 1 entries
     light = pick_light(cdf, uniform(key, dim))
     lp = light_point(lt, light, uniform(key, dim + 1), uniform(key, dim + 2))
@@ -243,6 +257,8 @@ def _surface_nee(lt, env, mt, m, front, x, ng, wo, ts, tt, sn, beta, sampling, p
         f, pdf_bsdf = bsdf_eval(mt, m, front, wo, wil)
         w = light_sample_weight(p_light, pdf_bsdf, is_delta, sampling)
         c = scale(mul(mul(beta, f), le), abs(wil[2]) * w / p_light)
+        if bumped:
+            c = scale(c, bump_shadowing(sn_mesh, sn, wi))
         if max3(c) > 0.0:
             xo = offset_origin(x, ng, wi)
             ws = wi

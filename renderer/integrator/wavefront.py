@@ -18,6 +18,7 @@ from ..lights.table import kernel_arrays
 from ..media.layout import dda_scratch
 from ..media.stack_phase import phase_eval, sample_phase
 from ..scene import IntegratorSettings
+from ..shading.shadows import emitter_programs, probe_rays, shadow_programs
 from ..shading.stage import FIELD_OFFSETS, scratch_table, shade_programs
 from . import stages as K
 from .aovs import aov_surface
@@ -109,16 +110,21 @@ class Tracer:
     def _shader_programs(self, cs: CompiledScene) -> None:
         """Scratch for the shader program stage (renderer.shading.stage), only in scenes
         with programs; otherwise the surface stage gets an empty override and the scene's
-        own material table."""
-        self.mt = cs.materials
-        self.override = np.zeros(0, np.int32)
+        own material table. Shadow rays get a table of their own (renderer.shading.shadows)."""
+        self.mt = self.shadow_mt = cs.materials
+        self.override = self.shadow_override = np.zeros(0, np.int32)
+        self.program_out = np.zeros((0, 6), np.float32)
         self.regs = np.zeros(1, np.float32)
         self.max_lobes = 0
         if cs.shading is not None:
             self.max_lobes = cs.shading.max_lobes
             self.mt = scratch_table(cs.materials, self.batch, self.max_lobes)
             self.override = np.full(self.batch, -1, np.int32)
+            self.program_out = np.zeros((self.batch, 6), np.float32)
             self.regs = np.zeros(cs.shading.max_registers, np.float32)
+            shadows = self.sh.o.shape[0]
+            self.shadow_mt = scratch_table(cs.materials, shadows, self.max_lobes)
+            self.shadow_override = np.full(shadows, -1, np.int32)
 
     def kernel_calls(self) -> list[KernelCall]:
         """Every kernel call a batch of this scene makes, with arguments of the types it
@@ -129,22 +135,30 @@ class Tracer:
         calls: list[KernelCall] = self.subtree_calls() + [
             (K.start_paths, (ps, self.pixel_of_pid, cs.camera, cs.width, cs.height, 0, 0, 0, 1, 0,
                              self.init_stack)),
-            (K.shade_surface, (1, ps, prim, bu, bv, cs.geometry, self.mt, self.override, lt,
-                               cs.lights.env_light, cs.lights.sun_rows, cs.environment, cfg, L, sh, 0,
+            (K.shade_surface, (1, ps, prim, bu, bv, cs.geometry, self.mt, self.override, self.program_out,
+                               lt, cs.lights.env_light, cs.lights.sun_rows, cs.environment, cfg, L, sh, 0,
                                cs.camera, self.mist)),
             (K.compact_paths, (1, ps)),
             (K.splat, (1, L, self.pixel_of_pid, np.zeros((1, 3), np.float64), np.zeros((1, 3), np.float64),
                        np.zeros(1, np.int64), np.zeros(1, np.int64), np.zeros(1, np.float64), self.no_aov)),
         ]
         if cs.shading is not None:
-            calls.append((shade_programs, (1, ps, prim, bu, bv, cs.geometry, cs.shading.arrays, self.mt,
-                                           self.regs, self.override, self.max_lobes, FIELD_OFFSETS)))
+            st, lobes = cs.shading.arrays, self.max_lobes
+            calls.append((shade_programs, (1, ps, prim, bu, bv, cs.geometry, st, self.mt, self.regs,
+                                           self.override, self.program_out, lobes, FIELD_OFFSETS)))
+            if cs.shading.emission:
+                calls.append((emitter_programs, (1, sh, prim, bu, bv, cs.geometry, st, self.shadow_mt,
+                                                 self.regs, 1, lobes, FIELD_OFFSETS)))
+            if cs.needs_shadow_walk:
+                calls.append((shadow_programs, (1, sh, prim, bu, bv, cs.geometry, st, self.shadow_mt,
+                                                self.regs, self.shadow_override, lobes, FIELD_OFFSETS)))
         if cs.has_media:
             calls.append((K.shade_media, (1, ps, prim, lt, cs.environment, self.md, cfg, L, sh, self.nb,
                                           self.grid_md)))
         if cs.needs_shadow_walk:
-            calls.append((K.walk_shadows, (1, sh, prim, np.zeros(1, np.float32), self.remaining, cs.geometry,
-                                           cs.materials, self.md, cfg, L, self.grid_md)))
+            calls.append((K.walk_shadows, (1, sh, prim, np.zeros(1, np.float32), self.remaining,
+                                           cs.geometry, self.shadow_mt, self.shadow_override, self.md, cfg,
+                                           L, self.grid_md)))
             calls.append((K.compact_shadows, (1, sh, self.remaining)))
         else:
             calls.append((K.resolve_shadows, (1, sh, np.zeros(1, np.bool_), L)))
@@ -209,8 +223,9 @@ class Tracer:
                                       self.nb, self.grid_md)
             if cs.shading is not None:
                 shade_programs(live, ps, prim, bu, bv, cs.geometry, cs.shading.arrays, self.mt, self.regs,
-                               self.override, self.max_lobes, FIELD_OFFSETS)
-            count = K.shade_surface(live, ps, prim, bu, bv, cs.geometry, self.mt, self.override, self.lt,
+                               self.override, self.program_out, self.max_lobes, FIELD_OFFSETS)
+            count = K.shade_surface(live, ps, prim, bu, bv, cs.geometry, self.mt, self.override,
+                                    self.program_out, self.lt,
                                     cs.lights.env_light, cs.lights.sun_rows, cs.environment, self.cfg, self.L,
                                     sh, count,
                                     cs.camera, self.mist)
@@ -230,8 +245,13 @@ class Tracer:
         L[:n, AOV_SAMPLE0] = sample == 0
 
     def _shadows(self, count: int) -> None:
-        sh = self.sh
+        sh, cs = self.sh, self.cs
         self.stats["shadow_rays"] += count
+        if cs.shading is not None and cs.shading.emission:
+            # Textured emitters: their radiance at each ray's light point (shading.shadows).
+            prim, bu, bv = self.isect.intersect(*probe_rays(sh, count))
+            emitter_programs(count, sh, prim, bu, bv, cs.geometry, cs.shading.arrays, self.shadow_mt,
+                             self.regs, self.shadow_override.shape[0], self.max_lobes, FIELD_OFFSETS)
         if not self.cs.needs_shadow_walk:
             if self.cs.has_media:
                 K.shadow_media(count, sh, self.md, self.cfg, self.grid_md)
@@ -242,7 +262,10 @@ class Tracer:
         remaining[:count] = sh.tmax[:count]
         while count > 0:
             thit = remaining[:count].copy()
-            prim, _, _ = self.isect.intersect(sh.o[:count], sh.d[:count], thit)
-            K.walk_shadows(count, sh, prim, thit, remaining, self.cs.geometry, self.cs.materials,
-                           self.md, self.cfg, self.L, self.grid_md)
+            prim, bu, bv = self.isect.intersect(sh.o[:count], sh.d[:count], thit)
+            if cs.shading is not None:
+                shadow_programs(count, sh, prim, bu, bv, cs.geometry, cs.shading.arrays, self.shadow_mt,
+                                self.regs, self.shadow_override, self.max_lobes, FIELD_OFFSETS)
+            K.walk_shadows(count, sh, prim, thit, remaining, cs.geometry, self.shadow_mt,
+                           self.shadow_override, self.md, self.cfg, self.L, self.grid_md)
             count = K.compact_shadows(count, sh, remaining)

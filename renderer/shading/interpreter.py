@@ -17,6 +17,7 @@ from .color import fresnel, hsv_to_rgb, hue_saturation_value, layer_weight, rgb_
 from .image import image_lookup
 from .math_ops import math_op, mix_color, vector_op
 from .noise import noise_texture_3d
+from .normals import normal_map
 from .program import I_A, I_B, I_C, I_D, I_DST, I_OP, I_P0, I_P1, I_P2, OP
 from .table import P_CODE, P_INIT, P_NCODE, P_NREGS
 from .textures import checker, gradient, mapping, ramp_lookup
@@ -28,6 +29,7 @@ COMBINE, COPY, INVERT, RGB_TO_BW = OP["combine"], OP["copy"], OP["invert"], OP["
 CLAMP, GRADIENT, GAMMA, BRIGHT_CONTRAST = OP["clamp"], OP["gradient"], OP["gamma"], OP["bright_contrast"]
 MAP_RANGE, NOISE, HSV, HSV_CONVERT = OP["map_range"], OP["noise"], OP["hsv"], OP["hsv_convert"]
 FRESNEL, LAYER_WEIGHT = OP["fresnel"], OP["layer_weight"]
+NORMAL_MAP = OP["normal_map"]
 
 
 @inline_kernel
@@ -169,6 +171,9 @@ def run_program(st, m, regs, p, b0, b1, b2, x, n, wi, back):  # noqa: C901 - the
                                           ins[I_P0] != 0)
             regs[dst] = value
             _put3(regs, dst + 1, col)
+        elif op == NORMAL_MAP:
+            _put3(regs, dst, normal_map(_v(regs, a), float(regs[b]), _v(regs, c), float(regs[ins[I_D]]),
+                                        ins[I_P0], n, back))
         elif op == MAP_RANGE:
             regs[dst] = _map_range(float(regs[a]), float(regs[b]), float(regs[b + 1]), float(regs[b + 2]),
                                    float(regs[b + 3]), float(regs[b + 4]), ins[I_P0], ins[I_P1] != 0)

@@ -10,6 +10,11 @@ which Math operation, or where a table starts in the program's constant data).
 Bindings say what the program drives: after it runs, each binding writes registers into
 a field of one of the material's lobes (renderer.bsdfs.layout.LOBE), either setting the
 field (BIND_SET) or scaling it by one scalar register (BIND_SCALE, Mix Shader factors).
+The field "emission" names no lobe (its lobe is -1): its three registers are the surface's
+emitted radiance, which then replaces Material.emission (that value only sets the
+emitter's share of light sampling; see renderer.shading.shadows). The field "normal" names
+no lobe either: its three registers are the shading normal of all the material's lobes (the
+Normal input of a BSDF).
 """
 
 from __future__ import annotations
@@ -56,11 +61,13 @@ OPCODES = (
     "layer_weight",  # dst = Layer Weight of blend a with normal b: i0 0 Fresnel, 1 Facing
     "noise",       # dst factor, dst+1..3 colour: Noise (3D fBM) of vector a; b..b+4 = scale,
                    # detail, roughness, lacunarity, distortion; i0 normalize
+    "normal_map",  # dst(3) = Normal Map of colour a, strength b, tangent c (3), bitangent sign d;
+                   # i0 space (names.NORMAL_MAP_SPACES)
 )
 OP = {name: code for code, name in enumerate(OPCODES)}
 
 # Lobe fields a binding may drive, and how.
-BIND_FIELDS = ("weight", "color", "roughness", "ior", "tint")
+BIND_FIELDS = ("weight", "color", "roughness", "ior", "tint", "emission", "normal")
 BIND = Layout("bind", [("lobe", 1), ("field", 1), ("width", 1), ("reg", 1), ("mode", 1)])
 BIND_SET, BIND_SCALE = 0, 1
 

@@ -8,7 +8,18 @@ materials keep their path and compile nothing for it.
 
 The extended table is the scene's (mats, lobes) followed by one scratch material per path
 slot and `max_lobes` scratch lobes per slot (scratch_table).
+
+A program may also drive the surface's emission (binding field "emission"): the stage
+writes the path's emitted radiance into out[i, 0:3], which the surface stage uses instead
+of the light table's value. The table holds Material.emission = 1 for such an emitter
+(radiance 1 per channel: it only weighs the emitter in light sampling), so out[i, 0:3] is
+the factor to scale the table's radiance by (renderer.shading.shadows does the same at
+light sampling points). A program driving the shading normal (field "normal") writes it,
+on the front side of the geometric normal as the surface stage keeps it, into
+out[i, 3:6] (zero: the mesh's own normal).
 """
+
+import math
 
 import numpy as np
 
@@ -18,13 +29,16 @@ from renderer.kernels import inline_kernel, kernel
 from renderer.kernels.vecmath import add, dot, madd, neg, normalize, scale
 
 from .interpreter import run_program
+from .normals import valid_specular_normal
 from .program import BIND, BIND_SCALE
 from .table import P_BIND, P_NBIND, P_NCODE
 
 B_LOBE, B_FIELD, B_WIDTH, B_REG, B_MODE = (BIND.offset(f) for f in ("lobe", "field", "width", "reg", "mode"))
 # Offsets of program.BIND_FIELDS in a lobe row, and the valid range of each.
-FIELD_OFFSETS = np.array([LOBE.offset(f) for f in ("weight", "color", "roughness", "ior", "tint")], np.int32)
-F_WEIGHT, F_COLOR, F_ROUGHNESS, F_IOR, F_TINT = 0, 1, 2, 3, 4
+# F_EMISSION and F_NORMAL have no lobe offset (its binding writes the path's emission, not a lobe).
+FIELD_OFFSETS = np.array([LOBE.offset(f) for f in ("weight", "color", "roughness", "ior", "tint")] + [0, 0],
+                         np.int32)
+F_WEIGHT, F_COLOR, F_ROUGHNESS, F_IOR, F_TINT, F_EMISSION, F_NORMAL = 0, 1, 2, 3, 4, 5, 6
 
 
 def scratch_table(mt: tuple, batch: int, max_lobes: int) -> tuple:
@@ -64,11 +78,13 @@ def _shading_normal(geo, p, b0, b1, b2, ng):
 
 
 @kernel
-def shade_programs(n, ps, prim, bu, bv, geo, st, mt, regs, override, max_lobes, field_offsets):
+def shade_programs(n, ps, prim, bu, bv, geo, st, mt, regs, override, out, max_lobes, field_offsets):
     """Run the programs of paths 0..n-1 that are PATH_ACTIVE and hit a material with one;
-    override[i] = their scratch material, -1 for the others."""
+    override[i] = their scratch material, -1 for the others; out[i] (n, 6) the factor on
+    the light table's radiance of the emitter hit (1 unless the program drives emission)
+    and the shading normal (0 unless the program drives it)."""
     mats, lobes = mt
-    progs, binds = st[0], st[4]
+    progs = st[0]
     n_mats = mats.shape[0] - override.shape[0]
     n_lobes = lobes.shape[0] - override.shape[0] * max_lobes
     for i in range(n):
@@ -79,27 +95,69 @@ def shade_programs(n, ps, prim, bu, bv, geo, st, mt, regs, override, max_lobes, 
         m = geo.material[p]
         if progs[m, P_NCODE] < 0:
             continue
-        b1 = float(bu[i])
-        b2 = float(bv[i])
-        b0 = 1.0 - b1 - b2
-        x = madd(madd(load3(geo.v0, p), load3(geo.e1, p), b1), load3(geo.e2, p), b2)
-        ng = load3(geo.ng, p)
-        d = load3(ps.d, i)
-        back = dot(d, ng) > 0.0
-        sn = _shading_normal(geo, p, b0, b1, b2, ng)
-        # Cycles' sd->N faces the side the ray came from.
-        run_program(st, m, regs, p, b0, b1, b2, x, neg(sn) if back else sn, neg(d), back)
-        row = n_mats + i
-        first = n_lobes + i * max_lobes
-        start = mats[m, M_FIRST]
-        count = mats[m, M_COUNT]
-        for j in range(count):
-            for c in range(lobes.shape[1]):
-                lobes[first + j, c] = lobes[start + j, c]
-        mats[row, M_FIRST] = first
-        mats[row, M_COUNT] = count
-        b_first = progs[m, P_BIND]
-        for k in range(b_first, b_first + progs[m, P_NBIND]):
+        e, sn = apply_program(geo, st, mt, regs, p, m, float(bu[i]), float(bv[i]), load3(ps.d, i), n_mats + i,
+                              n_lobes + i * max_lobes, field_offsets)
+        out[i, 0], out[i, 1], out[i, 2] = e[0], e[1], e[2]
+        out[i, 3], out[i, 4], out[i, 5] = sn[0], sn[1], sn[2]
+        override[i] = n_mats + i
+
+
+@inline_kernel
+def hit_point(geo, p, b1, b2):
+    """World position of barycentrics (b1, b2) on triangle p."""
+    return madd(madd(load3(geo.v0, p), load3(geo.e1, p), b1), load3(geo.e2, p), b2)
+
+
+@inline_kernel
+def apply_program(geo, st, mt, regs, p, m, b1, b2, d, row, first, field_offsets):
+    """Run material m's program where direction d meets triangle p at barycentrics (b1, b2),
+    write the material with the program's results into scratch material `row` (its lobes
+    from `first`), and return the emission factor (program.py: the emission binding's
+    registers, (1, 1, 1) without one) and the shading normal on the front side of the
+    geometric normal ((0, 0, 0) without a normal binding). A bound normal is raised toward
+    the geometric one where its mirror reflection would go below the surface, as Cycles
+    does for its glossy closures (normals.valid_specular_normal)."""
+    mats, lobes = mt
+    progs, binds = st[0], st[4]
+    b0 = 1.0 - b1 - b2
+    x = hit_point(geo, p, b1, b2)
+    ng = load3(geo.ng, p)
+    back = dot(d, ng) > 0.0
+    sn = _shading_normal(geo, p, b0, b1, b2, ng)
+    # Cycles' sd->N faces the side the ray came from.
+    wi = neg(d)
+    run_program(st, m, regs, p, b0, b1, b2, x, neg(sn) if back else sn, wi, back)
+    start = mats[m, M_FIRST]
+    count = mats[m, M_COUNT]
+    for j in range(count):
+        for c in range(lobes.shape[1]):
+            lobes[first + j, c] = lobes[start + j, c]
+    mats[row, M_FIRST] = first
+    mats[row, M_COUNT] = count
+    e = (1.0, 1.0, 1.0)
+    bound = (0.0, 0.0, 0.0)
+    b_first = progs[m, P_BIND]
+    for k in range(b_first, b_first + progs[m, P_NBIND]):
+        r = binds[k, B_REG]
+        if binds[k, B_FIELD] == F_EMISSION:
+            e = (_finite(float(regs[r]), 0.0, 3.0e38), _finite(float(regs[r + 1]), 0.0, 3.0e38),
+                 _finite(float(regs[r + 2]), 0.0, 3.0e38))
+        elif binds[k, B_FIELD] == F_NORMAL:
+            bound = _bound_normal((float(regs[r]), float(regs[r + 1]), float(regs[r + 2])), ng, wi, back)
+        else:
             _bind(lobes, first + binds[k, B_LOBE], binds[k, B_FIELD], binds[k, B_WIDTH], regs,
                   binds[k, B_REG], binds[k, B_MODE], field_offsets)
-        override[i] = row
+    return e, bound
+
+
+@inline_kernel
+def _bound_normal(v, ng, wi, back):
+    """A program's normal (facing the viewer's side, as Cycles' N) made valid for specular
+    reflection and turned to the front side of ng, where the surface stage keeps normals;
+    (0, 0, 0) when it is not a usable direction."""
+    length = math.sqrt(dot(v, v))
+    if not length > 0.0 or not math.isfinite(length):
+        return (0.0, 0.0, 0.0)
+    side_ng = neg(ng) if back else ng
+    nv = valid_specular_normal(side_ng, wi, scale(v, 1.0 / length))
+    return neg(nv) if back else nv

@@ -22,7 +22,7 @@ import numpy as np
 from renderer.errors import SceneError
 from renderer.layout import Layout
 
-from .program import BIND, I_P0, I_P1, INSTR, OP
+from .program import BIND, BIND_FIELDS, I_P0, I_P1, INSTR, OP
 
 PROG = Layout("prog", [("code", 1), ("ncode", 1), ("init", 1), ("nregs", 1), ("bind", 1), ("nbind", 1)])
 P_CODE, P_NCODE, P_INIT = PROG.offset("code"), PROG.offset("ncode"), PROG.offset("init")
@@ -34,6 +34,7 @@ class ShadingTables:
     arrays: tuple
     max_registers: int  # the largest register file of any program
     max_lobes: int  # lobes of the largest material with a program
+    emission: bool = False  # some program drives its surface's emission (shading.shadows)
 
 
 def attribute_width(name: str) -> int:
@@ -97,4 +98,6 @@ def build_shading_tables(materials, meshes, images, triangles: int) -> ShadingTa
     arrays = (progs, np.concatenate(code), np.concatenate(init), np.concatenate(data), np.concatenate(binds),
               corner, np.ascontiguousarray(np.concatenate(texels)), image_rows)
     max_lobes = max(len(m.lobes) for m in materials if m.program is not None)
-    return ShadingTables(arrays, max(1, int(progs[:, PROG.offset("nregs")].max())), max(1, max_lobes))
+    emission = bool(np.any(arrays[4][:, BIND.offset("field")] == BIND_FIELDS.index("emission")))
+    max_registers = max(1, int(progs[:, PROG.offset("nregs")].max()))
+    return ShadingTables(arrays, max_registers, max(1, max_lobes), emission)
