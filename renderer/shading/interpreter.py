@@ -14,12 +14,14 @@ import math
 from renderer.kernels import inline_kernel
 
 from .color import fresnel, hsv_to_rgb, hue_saturation_value, layer_weight, rgb_to_hsv
+from .fractal import noise_texture
 from .image import image_lookup
 from .math_ops import math_op, mix_color, vector_op
 from .noise import noise_texture_3d
 from .program import I_A, I_B, I_C, I_D, I_DST, I_OP, I_P0, I_P1, I_P2, OP
 from .table import P_CODE, P_INIT, P_NCODE, P_NREGS
 from .textures import checker, gradient, mapping, ramp_lookup
+from .white_noise import white_noise
 
 ATTRIBUTE, POSITION, NORMAL = OP["attribute"], OP["position"], OP["normal"]
 MATH, VECTOR_MATH, MIX, MIX_FLOAT = OP["math"], OP["vector_math"], OP["mix"], OP["mix_float"]
@@ -28,6 +30,7 @@ COMBINE, COPY, INVERT, RGB_TO_BW = OP["combine"], OP["copy"], OP["invert"], OP["
 CLAMP, GRADIENT, GAMMA, BRIGHT_CONTRAST = OP["clamp"], OP["gradient"], OP["gamma"], OP["bright_contrast"]
 MAP_RANGE, NOISE, HSV, HSV_CONVERT = OP["map_range"], OP["noise"], OP["hsv"], OP["hsv_convert"]
 FRESNEL, LAYER_WEIGHT = OP["fresnel"], OP["layer_weight"]
+NOISE_ND, WHITE_NOISE = OP["noise_nd"], OP["white_noise"]
 
 
 @inline_kernel
@@ -169,9 +172,36 @@ def run_program(st, m, regs, p, b0, b1, b2, x, n, wi, back):  # noqa: C901 - the
                                           ins[I_P0] != 0)
             regs[dst] = value
             _put3(regs, dst + 1, col)
+        elif op == NOISE_ND:
+            _noise_nd(regs, dst, _v(regs, a), b, ins[I_P0], ins[I_P1], ins[I_P2] != 0)
+        elif op == WHITE_NOISE:
+            q = _v(regs, a)
+            value, col = white_noise(ins[I_P0], q[0], q[1], q[2], float(regs[b]))
+            regs[dst] = value
+            _put3(regs, dst + 1, col)
         elif op == MAP_RANGE:
             regs[dst] = _map_range(float(regs[a]), float(regs[b]), float(regs[b + 1]), float(regs[b + 2]),
                                    float(regs[b + 3]), float(regs[b + 4]), ins[I_P0], ins[I_P1] != 0)
+
+
+@inline_kernel
+def _noise_nd(regs, dst, q, b, dim, kind, normalize):
+    """Noise Texture of any dimension and type: (q, W) scaled by regs[b + 1], as
+    svm_node_tex_noise; 1D noise reads W alone."""
+    s = float(regs[b + 1])
+    w = float(regs[b]) * s
+    x, y, z = q[0] * s, q[1] * s, q[2] * s
+    if dim == 1:
+        x, y, z, w = w, 0.0, 0.0, 0.0
+    elif dim == 2:
+        z, w = 0.0, 0.0
+    elif dim == 3:
+        w = 0.0
+    value, col = noise_texture(dim, kind, x, y, z, w, float(regs[b + 2]), float(regs[b + 3]),
+                               float(regs[b + 4]), float(regs[b + 5]), float(regs[b + 6]),
+                               float(regs[b + 7]), normalize)
+    regs[dst] = value
+    _put3(regs, dst + 1, col)
 
 
 @inline_kernel

@@ -56,6 +56,10 @@ OPCODES = (
     "layer_weight",  # dst = Layer Weight of blend a with normal b: i0 0 Fresnel, 1 Facing
     "noise",       # dst factor, dst+1..3 colour: Noise (3D fBM) of vector a; b..b+4 = scale,
                    # detail, roughness, lacunarity, distortion; i0 normalize
+    "noise_nd",    # dst factor, dst+1..3 colour: Noise Texture of vector a; b..b+7 = W, scale, detail,
+                   # roughness, lacunarity, offset, gain, distortion; i0 dimensions (1-4),
+                   # i1 type (fractal.TYPES), i2 normalize
+    "white_noise",  # dst value, dst+1..3 colour: White Noise of vector a and W b; i0 dimensions (1-4)
 )
 OP = {name: code for code, name in enumerate(OPCODES)}
 

@@ -1,0 +1,68 @@
+"""Procedural texture nodes compiled into program instructions (program_builder), with
+Cycles' semantics: Noise Texture of every dimension and type (renderer.shading.fractal),
+White Noise (white_noise).
+
+Handlers follow node_program's convention (graph, node, output, scope) -> Reg | None;
+TEXTURE_HANDLERS and TEXTURE_SOURCES are merged into node_program's registry.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+from renderer.shading.fractal import TYPES as NOISE_TYPES
+
+from .program_builder import Reg
+
+DIMENSIONS = {"1D": 1, "2D": 2, "3D": 3, "4D": 4}
+
+
+def by_id(node, identifier: str):
+    return next(s for s in node.inputs if s.identifier == identifier)
+
+
+def texture_vector(graph, node, scope) -> Reg:
+    """A procedural texture's Vector input; unlinked, Cycles' default: Generated."""
+    socket = node.inputs["Vector"]
+    if graph.link_source(socket) is not None:
+        return graph.operand(socket, scope)
+    return graph.program.attribute("generated", 3)
+
+
+def block(graph, node, scope, names: tuple[str, ...]) -> Reg:
+    """The inputs `names` copied into consecutive registers (an instruction's parameter block)."""
+    p = graph.program
+    out = p.alloc(len(names))
+    for k, name in enumerate(names):
+        p.emit("copy", 1, graph.operand(by_id(node, name), scope), i0=1, dst=Reg(out.index + k, 1))
+    return out
+
+
+def noise(graph, node, output, scope) -> Reg | None:
+    """Noise Texture: Fac in [0, 1] for normalized fBM (see fractal.py for the others' ranges),
+    Color = (Fac, two more seeds)."""
+    dim = DIMENSIONS[node.noise_dimensions]
+    p = graph.program
+    v = texture_vector(graph, node, scope) if dim > 1 else p.const((0.0, 0.0, 0.0))
+    params = block(graph, node, scope, ("W", "Scale", "Detail", "Roughness", "Lacunarity", "Offset", "Gain",
+                                        "Distortion"))
+    out = p.emit("noise_nd", 4, v, params, i0=dim, i1=NOISE_TYPES.index(node.noise_type),
+                 i2=int(node.normalize))
+    return Reg(out.index, 1) if output.identifier == "Fac" else Reg(out.index + 1, 3)
+
+
+def white_noise(graph, node, output, scope) -> Reg | None:
+    """White Noise Texture: Value and Color in [0, 1], hashes of the input's float32 bits."""
+    dim = DIMENSIONS[node.noise_dimensions]
+    p = graph.program
+    v = texture_vector(graph, node, scope) if dim > 1 else p.const((0.0, 0.0, 0.0))
+    w = graph.operand(by_id(node, "W"), scope) if dim in (1, 4) else p.const(0.0)
+    out = p.emit("white_noise", 4, v, w, i0=dim)
+    return Reg(out.index, 1) if output.identifier == "Value" else Reg(out.index + 1, 3)
+
+
+TEXTURE_HANDLERS: dict[str, Callable] = {
+    "ShaderNodeTexNoise": noise,
+    "ShaderNodeTexWhiteNoise": white_noise,
+}
+TEXTURE_SOURCES = set(TEXTURE_HANDLERS)
