@@ -38,7 +38,29 @@ TIGHT = 1e-5
 WHITE_NOISE = {f"tex_white_{d}_{out.lower()}": (d, out) for d in ("1D", "2D", "3D", "4D")
                for out in ("Value", "Color")}
 
-CASES = list(NOISE) + list(WHITE_NOISE)
+# name: (dimensions, feature, metric, output, detail, normalize); on quantized inputs, as
+# noise (a point near a cell border would otherwise pick its cell by round-off).
+_V = [("F1", "EUCLIDEAN", "Distance", 0.0, False), ("F1", "EUCLIDEAN", "Color", 0.0, False),
+      ("F1", "MANHATTAN", "Position", 0.0, False), ("F2", "CHEBYCHEV", "Distance", 0.0, False),
+      ("F2", "EUCLIDEAN", "Color", 0.0, False), ("SMOOTH_F1", "EUCLIDEAN", "Distance", 0.0, False),
+      ("SMOOTH_F1", "MANHATTAN", "Color", 0.0, False),
+      ("DISTANCE_TO_EDGE", "EUCLIDEAN", "Distance", 0.0, False),
+      ("N_SPHERE_RADIUS", "EUCLIDEAN", "Radius", 0.0, False)]
+VORONOI = {f"tex_voronoi_{d.lower()}_{f.lower()}_{m.lower()}_{o.lower()}": (d, f, m, o, detail, normalize)
+           for d in ("1D", "2D", "3D", "4D") for f, m, o, detail, normalize in _V
+           if not (d == "1D" and o == "Position")}  # 1D has W only
+VORONOI.update({
+    "tex_voronoi_3d_f1_minkowski_distance": ("3D", "F1", "MINKOWSKI", "Distance", 0.0, False),
+    "tex_voronoi_3d_smooth_f1_euclidean_position": ("3D", "SMOOTH_F1", "EUCLIDEAN", "Position", 0.0, False),
+    "tex_voronoi_3d_fractal_f1_distance": ("3D", "F1", "EUCLIDEAN", "Distance", 2.5, True),
+    "tex_voronoi_3d_fractal_f2_color": ("3D", "F2", "EUCLIDEAN", "Color", 2.5, True),
+    "tex_voronoi_2d_fractal_smooth_position": ("2D", "SMOOTH_F1", "EUCLIDEAN", "Position", 1.5, False),
+    "tex_voronoi_3d_fractal_edge": ("3D", "DISTANCE_TO_EDGE", "EUCLIDEAN", "Distance", 1.5, True),
+    "tex_voronoi_4d_f1_euclidean_w": ("4D", "F1", "EUCLIDEAN", "W", 0.0, False),
+    "tex_voronoi_1d_fractal_f1_w": ("1D", "F1", "EUCLIDEAN", "W", 2.5, True),
+})
+
+CASES = list(NOISE) + list(WHITE_NOISE) + list(VORONOI)
 # Per-case tolerance (relative, as the test's); the others use the test's own.
 # Not yet understood: the Color of distorted 2D and 4D noise (green and blue, the fractal
 # at the distorted point plus a seed offset near 150) is off by up to 5.7e-5 and 2.1e-5
@@ -47,7 +69,8 @@ CASES = list(NOISE) + list(WHITE_NOISE)
 # test's 1e-4.
 LOOSE = {"tex_noise_2d_color", "tex_noise_4d_color"}
 TOLERANCES = {**{name: TIGHT for name in NOISE if not name.endswith("_smooth") and name not in LOOSE},
-              **{name: 1e-6 for name in WHITE_NOISE}}
+              **{name: 1e-6 for name in WHITE_NOISE},
+              **{name: TIGHT for name in list(VORONOI)}}
 
 
 def by_id(node, identifier):
@@ -137,10 +160,33 @@ def _white_noise(tree, name):
     return node.outputs[output]
 
 
+def _voronoi(tree, name):
+    dims, feature, metric, output, detail, normalize = VORONOI[name]
+    node = tree.nodes.new("ShaderNodeTexVoronoi")
+    node.voronoi_dimensions = dims
+    node.feature = feature
+    node.distance = metric
+    node.normalize = normalize
+    values = {"Scale": 3.7, "Detail": detail, "Roughness": 0.6, "Lacunarity": 2.1, "Smoothness": 0.6,
+              "Exponent": 1.5, "Randomness": 0.9}
+    for identifier, value in values.items():
+        socket = next((s for s in node.inputs if s.identifier == identifier), None)
+        if socket is not None:
+            socket.default_value = value
+    vector = _quantized(tree)
+    if dims != "1D":
+        tree.links.new(vector, node.inputs["Vector"])
+    if dims in ("1D", "4D"):
+        tree.links.new(_varying_w(tree, vector), by_id(node, "W"))
+    return next(s for s in node.outputs if s.identifier == output)
+
+
 def case_nodes(tree, name):
     """(output socket to bake) of texture case `name`."""
     if name in NOISE:
         return _noise(tree, name)
     if name in WHITE_NOISE:
         return _white_noise(tree, name)
+    if name in VORONOI:
+        return _voronoi(tree, name)
     raise ValueError(name)

@@ -1,6 +1,6 @@
 """Procedural texture nodes compiled into program instructions (program_builder), with
 Cycles' semantics: Noise Texture of every dimension and type (renderer.shading.fractal),
-White Noise (white_noise).
+White Noise (white_noise), Voronoi (voronoi).
 
 Handlers follow node_program's convention (graph, node, output, scope) -> Reg | None;
 TEXTURE_HANDLERS and TEXTURE_SOURCES are merged into node_program's registry.
@@ -11,6 +11,7 @@ from __future__ import annotations
 from collections.abc import Callable
 
 from renderer.shading.fractal import TYPES as NOISE_TYPES
+from renderer.shading.voronoi_cells import FEATURES, METRICS
 
 from .program_builder import Reg
 
@@ -29,12 +30,14 @@ def texture_vector(graph, node, scope) -> Reg:
     return graph.program.attribute("generated", 3)
 
 
-def block(graph, node, scope, names: tuple[str, ...]) -> Reg:
-    """The inputs `names` copied into consecutive registers (an instruction's parameter block)."""
+def block(graph, node, scope, names: tuple[str, ...], extra: tuple[Reg, ...] = ()) -> Reg:
+    """The inputs `names`, then the registers `extra`, copied into consecutive registers (an
+    instruction's parameter block)."""
     p = graph.program
-    out = p.alloc(len(names))
-    for k, name in enumerate(names):
-        p.emit("copy", 1, graph.operand(by_id(node, name), scope), i0=1, dst=Reg(out.index + k, 1))
+    sources = [graph.operand(by_id(node, name), scope) for name in names] + list(extra)
+    out = p.alloc(len(sources))
+    for k, source in enumerate(sources):
+        p.emit("copy", 1, source, i0=1, dst=Reg(out.index + k, 1))
     return out
 
 
@@ -61,8 +64,25 @@ def white_noise(graph, node, output, scope) -> Reg | None:
     return Reg(out.index, 1) if output.identifier == "Value" else Reg(out.index + 1, 3)
 
 
+VORONOI_OUTPUTS = {"Distance": (0, 1), "Color": (1, 3), "Position": (4, 3), "W": (7, 1), "Radius": (8, 1)}
+
+
+def voronoi(graph, node, output, scope) -> Reg | None:
+    """Voronoi Texture (ranges in renderer.shading.voronoi)."""
+    dim = DIMENSIONS[node.voronoi_dimensions]
+    p = graph.program
+    v = texture_vector(graph, node, scope) if dim > 1 else p.const((0.0, 0.0, 0.0))
+    params = block(graph, node, scope, ("W", "Scale", "Detail", "Roughness", "Lacunarity", "Smoothness",
+                                        "Exponent", "Randomness"))
+    flags = METRICS.index(node.distance) + 4 * int(node.normalize)
+    out = p.emit("voronoi", 9, v, params, i0=dim, i1=FEATURES.index(node.feature), i2=flags)
+    first, width = VORONOI_OUTPUTS[output.identifier]
+    return Reg(out.index + first, width)
+
+
 TEXTURE_HANDLERS: dict[str, Callable] = {
     "ShaderNodeTexNoise": noise,
     "ShaderNodeTexWhiteNoise": white_noise,
+    "ShaderNodeTexVoronoi": voronoi,
 }
 TEXTURE_SOURCES = set(TEXTURE_HANDLERS)

@@ -21,6 +21,7 @@ from .noise import noise_texture_3d
 from .program import I_A, I_B, I_C, I_D, I_DST, I_OP, I_P0, I_P1, I_P2, OP
 from .table import P_CODE, P_INIT, P_NCODE, P_NREGS
 from .textures import checker, gradient, mapping, ramp_lookup
+from .voronoi import voronoi_texture
 from .white_noise import white_noise
 
 ATTRIBUTE, POSITION, NORMAL = OP["attribute"], OP["position"], OP["normal"]
@@ -30,7 +31,7 @@ COMBINE, COPY, INVERT, RGB_TO_BW = OP["combine"], OP["copy"], OP["invert"], OP["
 CLAMP, GRADIENT, GAMMA, BRIGHT_CONTRAST = OP["clamp"], OP["gradient"], OP["gamma"], OP["bright_contrast"]
 MAP_RANGE, NOISE, HSV, HSV_CONVERT = OP["map_range"], OP["noise"], OP["hsv"], OP["hsv_convert"]
 FRESNEL, LAYER_WEIGHT = OP["fresnel"], OP["layer_weight"]
-NOISE_ND, WHITE_NOISE = OP["noise_nd"], OP["white_noise"]
+NOISE_ND, WHITE_NOISE, VORONOI = OP["noise_nd"], OP["white_noise"], OP["voronoi"]
 
 
 @inline_kernel
@@ -179,6 +180,8 @@ def run_program(st, m, regs, p, b0, b1, b2, x, n, wi, back):  # noqa: C901 - the
             value, col = white_noise(ins[I_P0], q[0], q[1], q[2], float(regs[b]))
             regs[dst] = value
             _put3(regs, dst + 1, col)
+        elif op == VORONOI:
+            _voronoi(regs, dst, _v(regs, a), b, ins[I_P0], ins[I_P1], ins[I_P2])
         elif op == MAP_RANGE:
             regs[dst] = _map_range(float(regs[a]), float(regs[b]), float(regs[b + 1]), float(regs[b + 2]),
                                    float(regs[b + 3]), float(regs[b + 4]), ins[I_P0], ins[I_P1] != 0)
@@ -202,6 +205,19 @@ def _noise_nd(regs, dst, q, b, dim, kind, normalize):
                                float(regs[b + 7]), normalize)
     regs[dst] = value
     _put3(regs, dst + 1, col)
+
+
+@inline_kernel
+def _voronoi(regs, dst, q, b, dim, feature, flags):
+    d, col, pos, radius = voronoi_texture(dim, feature, flags & 3, (flags & 4) != 0, q[0], q[1], q[2],
+                                          float(regs[b]), float(regs[b + 1]), float(regs[b + 2]),
+                                          float(regs[b + 3]), float(regs[b + 4]), float(regs[b + 5]),
+                                          float(regs[b + 6]), float(regs[b + 7]))
+    regs[dst] = d
+    _put3(regs, dst + 1, col)
+    _put3(regs, dst + 4, (pos[0], pos[1], pos[2]))
+    regs[dst + 7] = pos[3]
+    regs[dst + 8] = radius
 
 
 @inline_kernel

@@ -60,6 +60,9 @@ OPCODES = (
                    # roughness, lacunarity, offset, gain, distortion; i0 dimensions (1-4),
                    # i1 type (fractal.TYPES), i2 normalize
     "white_noise",  # dst value, dst+1..3 colour: White Noise of vector a and W b; i0 dimensions (1-4)
+    "voronoi",     # dst distance, dst+1..3 colour, dst+4..6 position, dst+7 W, dst+8 radius: Voronoi of
+                   # vector a; b..b+7 = W, scale, detail, roughness, lacunarity, smoothness, exponent,
+                   # randomness; i0 dimensions, i1 feature, i2 metric + 4 normalize (voronoi_cells)
 )
 OP = {name: code for code, name in enumerate(OPCODES)}
 
