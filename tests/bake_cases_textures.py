@@ -60,7 +60,18 @@ VORONOI.update({
     "tex_voronoi_1d_fractal_f1_w": ("1D", "F1", "EUCLIDEAN", "W", 2.5, True),
 })
 
-CASES = list(NOISE) + list(WHITE_NOISE) + list(VORONOI)
+# Wave: (type, direction, profile, distortion); Magic: depth; Brick: (offset frequency,
+# squash frequency, mortar smooth, output). Quantized inputs, as noise.
+WAVE = {f"tex_wave_{t.lower()}_{d.lower()}_{p.lower()}": (t, d, p, dist)
+        for t, d, p, dist in [("BANDS", "X", "SIN", 0.0), ("BANDS", "Y", "SAW", 0.0),
+                              ("BANDS", "Z", "TRI", 0.0), ("BANDS", "DIAGONAL", "SIN", 1.5),
+                              ("RINGS", "X", "SAW", 0.0), ("RINGS", "Y", "TRI", 0.0),
+                              ("RINGS", "Z", "SIN", 0.0), ("RINGS", "SPHERICAL", "TRI", 2.0)]}
+MAGIC = {f"tex_magic_{depth}": depth for depth in (0, 2, 5, 10)}
+BRICK = {"tex_brick_color": (2, 1, 0.0, "Color"), "tex_brick_fac": (2, 1, 0.3, "Fac"),
+         "tex_brick_squash": (3, 2, 0.3, "Color")}
+
+CASES = list(NOISE) + list(WHITE_NOISE) + list(VORONOI) + list(WAVE) + list(MAGIC) + list(BRICK)
 # Per-case tolerance (relative, as the test's); the others use the test's own.
 # Not yet understood: the Color of distorted 2D and 4D noise (green and blue, the fractal
 # at the distorted point plus a seed offset near 150) is off by up to 5.7e-5 and 2.1e-5
@@ -70,7 +81,7 @@ CASES = list(NOISE) + list(WHITE_NOISE) + list(VORONOI)
 LOOSE = {"tex_noise_2d_color", "tex_noise_4d_color"}
 TOLERANCES = {**{name: TIGHT for name in NOISE if not name.endswith("_smooth") and name not in LOOSE},
               **{name: 1e-6 for name in WHITE_NOISE},
-              **{name: TIGHT for name in list(VORONOI)}}
+              **{name: TIGHT for name in list(VORONOI) + list(WAVE) + list(MAGIC) + list(BRICK)}}
 
 
 def by_id(node, identifier):
@@ -181,6 +192,42 @@ def _voronoi(tree, name):
     return next(s for s in node.outputs if s.identifier == output)
 
 
+def _pattern(tree, name):
+    if name in WAVE:
+        kind, direction, profile, distortion = WAVE[name]
+        node = tree.nodes.new("ShaderNodeTexWave")
+        node.wave_type = kind
+        if kind == "BANDS":
+            node.bands_direction = direction
+        else:
+            node.rings_direction = direction
+        node.wave_profile = profile
+        values = {"Scale": 1.3, "Distortion": distortion, "Detail": 2.5, "Detail Scale": 1.7,
+                  "Detail Roughness": 0.6, "Phase Offset": 0.4}
+        output = "Fac"
+    elif name in MAGIC:
+        node = tree.nodes.new("ShaderNodeTexMagic")
+        node.turbulence_depth = MAGIC[name]
+        values = {"Scale": 2.3, "Distortion": 1.7}
+        output = "Color"
+    else:
+        offset_frequency, squash_frequency, smooth, output = BRICK[name]
+        node = tree.nodes.new("ShaderNodeTexBrick")
+        node.offset, node.offset_frequency = 0.4, offset_frequency
+        node.squash, node.squash_frequency = 0.7, squash_frequency
+        values = {"Scale": 3.1, "Mortar Size": 0.04, "Mortar Smooth": smooth, "Bias": 0.2,
+                  "Brick Width": 0.55, "Row Height": 0.27, "Color1": (0.9, 0.3, 0.2, 1),
+                  "Color2": (0.2, 0.5, 0.7, 1), "Mortar": (0.1, 0.1, 0.1, 1)}
+    for identifier, value in values.items():
+        by_id(node, identifier).default_value = value
+    # Shifted off the origin: z = 0 would put every Object point on a wave's or brick's edge.
+    shift = tree.nodes.new("ShaderNodeVectorMath")
+    shift.inputs[1].default_value = (0.3125, 0.1875, 0.4375)  # multiples of 1/16: exact
+    tree.links.new(_quantized(tree), shift.inputs[0])
+    tree.links.new(shift.outputs["Vector"], node.inputs["Vector"])
+    return node.outputs[output]
+
+
 def case_nodes(tree, name):
     """(output socket to bake) of texture case `name`."""
     if name in NOISE:
@@ -189,4 +236,6 @@ def case_nodes(tree, name):
         return _white_noise(tree, name)
     if name in VORONOI:
         return _voronoi(tree, name)
+    if name in WAVE or name in MAGIC or name in BRICK:
+        return _pattern(tree, name)
     raise ValueError(name)

@@ -11,6 +11,7 @@ from __future__ import annotations
 from collections.abc import Callable
 
 from renderer.shading.fractal import TYPES as NOISE_TYPES
+from renderer.shading.patterns import BANDS_DIRECTIONS, RINGS_DIRECTIONS, WAVE_PROFILES, WAVE_TYPES
 from renderer.shading.voronoi_cells import FEATURES, METRICS
 
 from .program_builder import Reg
@@ -80,9 +81,45 @@ def voronoi(graph, node, output, scope) -> Reg | None:
     return Reg(out.index + first, width)
 
 
+def wave(graph, node, output, scope) -> Reg:
+    """Wave Texture: Fac in [0, 1], Color its grey."""
+    p = graph.program
+    params = block(graph, node, scope, ("Scale", "Distortion", "Detail", "Detail Scale", "Detail Roughness",
+                                        "Phase Offset"))
+    bands = node.wave_type == "BANDS"
+    direction = (BANDS_DIRECTIONS.index(node.bands_direction) if bands
+                 else RINGS_DIRECTIONS.index(node.rings_direction))
+    f = p.emit("wave", 1, texture_vector(graph, node, scope), params, i0=WAVE_TYPES.index(node.wave_type),
+               i1=direction, i2=WAVE_PROFILES.index(node.wave_profile))
+    return f if output.identifier == "Fac" else p.widen(f)
+
+
+def magic(graph, node, output, scope) -> Reg:
+    """Magic Texture: Color in [0, 1] (see patterns.py), Fac its average."""
+    p = graph.program
+    params = block(graph, node, scope, ("Scale", "Distortion"))
+    out = p.emit("magic", 4, texture_vector(graph, node, scope), params, i0=int(node.turbulence_depth))
+    return Reg(out.index + 3, 1) if output.identifier == "Fac" else Reg(out.index, 3)
+
+
+def brick(graph, node, output, scope) -> Reg:
+    """Brick Texture: Color between Color1, Color2 and Mortar; Fac (the mortar) in [0, 1]."""
+    p = graph.program
+    shifts = (p.const(float(node.offset)), p.const(float(node.squash)))  # properties, not sockets
+    params = block(graph, node, scope, ("Scale", "Mortar Size", "Mortar Smooth", "Bias", "Brick Width",
+                                        "Row Height"), shifts)
+    colors = [graph.operand(node.inputs[k], scope) for k in ("Color1", "Color2", "Mortar")]
+    out = p.emit("brick", 4, texture_vector(graph, node, scope), params, *colors,
+                 i0=int(node.offset_frequency), i1=int(node.squash_frequency))
+    return Reg(out.index + 3, 1) if output.identifier == "Fac" else Reg(out.index, 3)
+
+
 TEXTURE_HANDLERS: dict[str, Callable] = {
     "ShaderNodeTexNoise": noise,
     "ShaderNodeTexWhiteNoise": white_noise,
     "ShaderNodeTexVoronoi": voronoi,
+    "ShaderNodeTexWave": wave,
+    "ShaderNodeTexMagic": magic,
+    "ShaderNodeTexBrick": brick,
 }
 TEXTURE_SOURCES = set(TEXTURE_HANDLERS)

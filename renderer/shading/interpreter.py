@@ -18,7 +18,8 @@ from .fractal import noise_texture
 from .image import image_lookup
 from .math_ops import math_op, mix_color, vector_op
 from .noise import noise_texture_3d
-from .program import I_A, I_B, I_C, I_D, I_DST, I_OP, I_P0, I_P1, I_P2, OP
+from .patterns import brick, magic, wave
+from .program import I_A, I_B, I_C, I_D, I_DST, I_E, I_OP, I_P0, I_P1, I_P2, OP
 from .table import P_CODE, P_INIT, P_NCODE, P_NREGS
 from .textures import checker, gradient, mapping, ramp_lookup
 from .voronoi import voronoi_texture
@@ -32,6 +33,7 @@ CLAMP, GRADIENT, GAMMA, BRIGHT_CONTRAST = OP["clamp"], OP["gradient"], OP["gamma
 MAP_RANGE, NOISE, HSV, HSV_CONVERT = OP["map_range"], OP["noise"], OP["hsv"], OP["hsv_convert"]
 FRESNEL, LAYER_WEIGHT = OP["fresnel"], OP["layer_weight"]
 NOISE_ND, WHITE_NOISE, VORONOI = OP["noise_nd"], OP["white_noise"], OP["voronoi"]
+WAVE, MAGIC, BRICK = OP["wave"], OP["magic"], OP["brick"]
 
 
 @inline_kernel
@@ -182,6 +184,20 @@ def run_program(st, m, regs, p, b0, b1, b2, x, n, wi, back):  # noqa: C901 - the
             _put3(regs, dst + 1, col)
         elif op == VORONOI:
             _voronoi(regs, dst, _v(regs, a), b, ins[I_P0], ins[I_P1], ins[I_P2])
+        elif op == WAVE:
+            q = _v(regs, a)
+            s = float(regs[b])
+            regs[dst] = wave(ins[I_P0], ins[I_P1], ins[I_P2], q[0] * s, q[1] * s, q[2] * s,
+                             float(regs[b + 1]), float(regs[b + 2]), float(regs[b + 3]), float(regs[b + 4]),
+                             float(regs[b + 5]))
+        elif op == MAGIC:
+            q = _v(regs, a)
+            col = magic(q[0], q[1], q[2], float(regs[b]), ins[I_P0], float(regs[b + 1]))
+            _put3(regs, dst, col)
+            regs[dst + 3] = (col[0] + col[1] + col[2]) * (1.0 / 3.0)
+        elif op == BRICK:
+            _brick(regs, dst, _v(regs, a), b, _v(regs, c), _v(regs, ins[I_D]), _v(regs, ins[I_E]), ins[I_P0],
+                   ins[I_P1])
         elif op == MAP_RANGE:
             regs[dst] = _map_range(float(regs[a]), float(regs[b]), float(regs[b + 1]), float(regs[b + 2]),
                                    float(regs[b + 3]), float(regs[b + 4]), ins[I_P0], ins[I_P1] != 0)
@@ -218,6 +234,19 @@ def _voronoi(regs, dst, q, b, dim, feature, flags):
     _put3(regs, dst + 4, (pos[0], pos[1], pos[2]))
     regs[dst + 7] = pos[3]
     regs[dst + 8] = radius
+
+
+@inline_kernel
+def _brick(regs, dst, q, b, c1, c2, mortar, offset_frequency, squash_frequency):
+    """svm_node_tex_brick: the brick's tint mixes Color1 and Color2, the mortar covers both."""
+    s = float(regs[b])
+    tint, f = brick(q[0] * s, q[1] * s, float(regs[b + 1]), float(regs[b + 2]), float(regs[b + 3]),
+                    float(regs[b + 4]), float(regs[b + 5]), float(regs[b + 6]), offset_frequency,
+                    float(regs[b + 7]), squash_frequency)
+    for ch in range(3):
+        base = (1.0 - tint) * c1[ch] + tint * c2[ch] if f != 1.0 else c1[ch]
+        regs[dst + ch] = base * (1.0 - f) + mortar[ch] * f
+    regs[dst + 3] = f
 
 
 @inline_kernel

@@ -63,6 +63,12 @@ OPCODES = (
     "voronoi",     # dst distance, dst+1..3 colour, dst+4..6 position, dst+7 W, dst+8 radius: Voronoi of
                    # vector a; b..b+7 = W, scale, detail, roughness, lacunarity, smoothness, exponent,
                    # randomness; i0 dimensions, i1 feature, i2 metric + 4 normalize (voronoi_cells)
+    "wave",        # dst = Wave of vector a; b..b+5 = scale, distortion, detail, detail scale, detail
+                   # roughness, phase; i0 type, i1 direction, i2 profile (patterns.py)
+    "magic",       # dst(3) colour, dst+3 factor: Magic of vector a; b, b+1 = scale, distortion; i0 depth
+    "brick",       # dst(3) colour, dst+3 factor: Brick of vector a; b..b+7 = scale, mortar size, mortar
+                   # smooth, bias, brick width, row height, offset, squash; colours c, d, mortar e;
+                   # i0 offset frequency, i1 squash frequency
 )
 OP = {name: code for code, name in enumerate(OPCODES)}
 
