@@ -71,7 +71,10 @@ MAGIC = {f"tex_magic_{depth}": depth for depth in (0, 2, 5, 10)}
 BRICK = {"tex_brick_color": (2, 1, 0.0, "Color"), "tex_brick_fac": (2, 1, 0.3, "Fac"),
          "tex_brick_squash": (3, 2, 0.3, "Color")}
 
-CASES = list(NOISE) + list(WHITE_NOISE) + list(VORONOI) + list(WAVE) + list(MAGIC) + list(BRICK)
+# Separate Color (HSL) per output, and Combine Color (HSL) of the separated values.
+HSL = {"tex_hsl_separate_h": 0, "tex_hsl_separate_s": 1, "tex_hsl_separate_l": 2, "tex_hsl_combine": None}
+
+CASES = list(NOISE) + list(WHITE_NOISE) + list(VORONOI) + list(WAVE) + list(MAGIC) + list(BRICK) + list(HSL)
 # Per-case tolerance (relative, as the test's); the others use the test's own.
 # Not yet understood: the Color of distorted 2D and 4D noise (green and blue, the fractal
 # at the distorted point plus a seed offset near 150) is off by up to 5.7e-5 and 2.1e-5
@@ -81,7 +84,7 @@ CASES = list(NOISE) + list(WHITE_NOISE) + list(VORONOI) + list(WAVE) + list(MAGI
 LOOSE = {"tex_noise_2d_color", "tex_noise_4d_color"}
 TOLERANCES = {**{name: TIGHT for name in NOISE if not name.endswith("_smooth") and name not in LOOSE},
               **{name: 1e-6 for name in WHITE_NOISE},
-              **{name: TIGHT for name in list(VORONOI) + list(WAVE) + list(MAGIC) + list(BRICK)}}
+              **{name: TIGHT for name in list(VORONOI) + list(WAVE) + list(MAGIC) + list(BRICK) + list(HSL)}}
 
 
 def by_id(node, identifier):
@@ -228,6 +231,26 @@ def _pattern(tree, name):
     return node.outputs[output]
 
 
+def _hsl(tree, name):
+    """A colour varying over the plane (UV mixed with a pink, some channels above 0.5 and
+    below), separated into HSL; combined back for tex_hsl_combine."""
+    mix = tree.nodes.new("ShaderNodeMix")
+    mix.data_type = "RGBA"
+    tree.links.new(tree.nodes.new("ShaderNodeTexCoord").outputs["UV"], by_id(mix, "A_Color"))
+    by_id(mix, "B_Color").default_value = (0.9, 0.3, 0.6, 1)
+    by_id(mix, "Factor_Float").default_value = 0.4
+    sep = tree.nodes.new("ShaderNodeSeparateColor")
+    sep.mode = "HSL"
+    tree.links.new(next(s for s in mix.outputs if s.identifier == "Result_Color"), sep.inputs["Color"])
+    if HSL[name] is not None:
+        return sep.outputs[HSL[name]]
+    comb = tree.nodes.new("ShaderNodeCombineColor")
+    comb.mode = "HSL"
+    for k in range(3):
+        tree.links.new(sep.outputs[k], comb.inputs[k])
+    return comb.outputs["Color"]
+
+
 def case_nodes(tree, name):
     """(output socket to bake) of texture case `name`."""
     if name in NOISE:
@@ -238,4 +261,6 @@ def case_nodes(tree, name):
         return _voronoi(tree, name)
     if name in WAVE or name in MAGIC or name in BRICK:
         return _pattern(tree, name)
+    if name in HSL:
+        return _hsl(tree, name)
     raise ValueError(name)

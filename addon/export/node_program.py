@@ -198,22 +198,22 @@ def color_ramp(graph, node, output, scope) -> Reg:
 
 def separate(graph, node, output, scope) -> Reg | None:
     mode = getattr(node, "mode", "RGB")
-    if mode not in ("RGB", "HSV"):
+    if mode not in ("RGB", "HSV", "HSL"):
         return None
     v = graph.operand(node.inputs[0], scope)
-    if mode == "HSV":
-        v = graph.program.emit("hsv_convert", 3, v, i0=0)
+    if mode != "RGB":
+        v = graph.program.emit("hsv_convert", 3, v, i0=0 if mode == "HSV" else 2)
     k = [o.identifier for o in node.outputs].index(output.identifier)
     return graph.program.component(v, k)
 
 
 def combine(graph, node, output, scope) -> Reg | None:
     mode = getattr(node, "mode", "RGB")
-    if mode not in ("RGB", "HSV"):
+    if mode not in ("RGB", "HSV", "HSL"):
         return None
     a, b, c = (graph.operand(node.inputs[k], scope) for k in range(3))
     out = graph.program.emit("combine", 3, a, b, c)
-    return graph.program.emit("hsv_convert", 3, out, i0=1) if mode == "HSV" else out
+    return out if mode == "RGB" else graph.program.emit("hsv_convert", 3, out, i0=1 if mode == "HSV" else 3)
 
 
 def hue_saturation(graph, node, output, scope) -> Reg:

@@ -13,7 +13,7 @@ import math
 
 from renderer.kernels import inline_kernel
 
-from .color import fresnel, hsv_to_rgb, hue_saturation_value, layer_weight, rgb_to_hsv
+from .color import fresnel, hsl_to_rgb, hsv_to_rgb, hue_saturation_value, layer_weight, rgb_to_hsl, rgb_to_hsv
 from .fractal import noise_texture
 from .image import image_lookup
 from .math_ops import math_op, mix_color, vector_op
@@ -159,7 +159,7 @@ def run_program(st, m, regs, p, b0, b1, b2, x, n, wi, back):  # noqa: C901 - the
             _put3(regs, dst, hue_saturation_value(_v(regs, a), float(regs[b]), float(regs[b + 1]),
                                                   float(regs[b + 2]), float(regs[b + 3])))
         elif op == HSV_CONVERT:
-            _put3(regs, dst, hsv_to_rgb(_v(regs, a)) if ins[I_P0] else rgb_to_hsv(_v(regs, a)))
+            _put3(regs, dst, _convert_color(ins[I_P0], _v(regs, a)))
         elif op == FRESNEL:
             nn = _v(regs, b)
             regs[dst] = fresnel(float(regs[a]), wi[0] * nn[0] + wi[1] * nn[1] + wi[2] * nn[2], back)
@@ -247,6 +247,15 @@ def _brick(regs, dst, q, b, c1, c2, mortar, offset_frequency, squash_frequency):
         base = (1.0 - tint) * c1[ch] + tint * c2[ch] if f != 1.0 else c1[ch]
         regs[dst + ch] = base * (1.0 - f) + mortar[ch] * f
     regs[dst + 3] = f
+
+
+@inline_kernel
+def _convert_color(kind, c):
+    if kind == 0:
+        return rgb_to_hsv(c)
+    if kind == 1:
+        return hsv_to_rgb(c)
+    return rgb_to_hsl(c) if kind == 2 else hsl_to_rgb(c)
 
 
 @inline_kernel

@@ -51,7 +51,7 @@ OPCODES = (
     "gamma",       # dst(3) = colour a ^ gamma b
     "bright_contrast",  # dst(3) = Bright/Contrast of colour a, bright b, contrast c
     "hsv",         # dst(3) = Hue/Saturation/Value of colour a: b..b+3 = hue, saturation, value, factor
-    "hsv_convert",  # dst(3) = colour a to HSV (i0 0) or HSV to RGB (i0 1)
+    "hsv_convert",  # dst(3) = colour a to HSV (i0 0), HSV to RGB (1), to HSL (2), HSL to RGB (3)
     "fresnel",     # dst = Fresnel of IOR a with normal b (3), the view direction and the face side
     "layer_weight",  # dst = Layer Weight of blend a with normal b: i0 0 Fresnel, 1 Facing
     "noise",       # dst factor, dst+1..3 colour: Noise (3D fBM) of vector a; b..b+4 = scale,
