@@ -198,22 +198,22 @@ def color_ramp(graph, node, output, scope) -> Reg:
 
 def separate(graph, node, output, scope) -> Reg | None:
     mode = getattr(node, "mode", "RGB")
-    if mode not in ("RGB", "HSV"):
+    if mode not in ("RGB", "HSV", "HSL"):
         return None
     v = graph.operand(node.inputs[0], scope)
-    if mode == "HSV":
-        v = graph.program.emit("hsv_convert", 3, v, i0=0)
+    if mode != "RGB":
+        v = graph.program.emit("hsv_convert", 3, v, i0=0 if mode == "HSV" else 2)
     k = [o.identifier for o in node.outputs].index(output.identifier)
     return graph.program.component(v, k)
 
 
 def combine(graph, node, output, scope) -> Reg | None:
     mode = getattr(node, "mode", "RGB")
-    if mode not in ("RGB", "HSV"):
+    if mode not in ("RGB", "HSV", "HSL"):
         return None
     a, b, c = (graph.operand(node.inputs[k], scope) for k in range(3))
     out = graph.program.emit("combine", 3, a, b, c)
-    return graph.program.emit("hsv_convert", 3, out, i0=1) if mode == "HSV" else out
+    return out if mode == "RGB" else graph.program.emit("hsv_convert", 3, out, i0=1 if mode == "HSV" else 3)
 
 
 def hue_saturation(graph, node, output, scope) -> Reg:
@@ -266,19 +266,6 @@ def map_range(graph, node, output, scope) -> Reg | None:
                   i0=MAP_RANGE_TYPES.index(node.interpolation_type), i1=int(node.clamp))
 
 
-def noise(graph, node, output, scope) -> Reg | None:
-    """Noise Texture, 3D fBM (the default); other dimensions and types are not compiled."""
-    if node.noise_dimensions != "3D" or node.noise_type != "FBM":
-        return None
-    p = graph.program
-    v = _texture_vector(graph, node, scope, "generated")
-    block = p.alloc(5)  # scale, detail, roughness, lacunarity, distortion: consecutive registers
-    for k, name in enumerate(("Scale", "Detail", "Roughness", "Lacunarity", "Distortion")):
-        p.emit("copy", 1, graph.operand(by_id(node, name), scope), i0=1, dst=Reg(block.index + k, 1))
-    out = p.emit("noise", 4, v, block, i0=int(node.normalize))
-    return Reg(out.index, 1) if output.identifier == "Fac" else Reg(out.index + 1, 3)
-
-
 def gamma(graph, node, output, scope) -> Reg:
     return graph.program.emit("gamma", 3, graph.operand(node.inputs["Color"], scope),
                               graph.operand(node.inputs["Gamma"], scope))
@@ -314,10 +301,15 @@ PROGRAM_HANDLERS: dict[str, Callable] = {
     "ShaderNodeClamp": clamp,
     "ShaderNodeMapRange": map_range,
     "ShaderNodeGamma": gamma,
-    "ShaderNodeTexNoise": noise,
     "ShaderNodeHueSaturation": hue_saturation,
     "ShaderNodeFresnel": fresnel,
     "ShaderNodeLayerWeight": layer_weight,
     "ShaderNodeBrightContrast": bright_contrast,
 }
 MATH_ADD = MATH["ADD"]
+
+# Procedural textures (noise, ...) are compiled in their own module.
+from .node_program_textures import TEXTURE_HANDLERS, TEXTURE_SOURCES  # noqa: E402
+
+PROGRAM_HANDLERS.update(TEXTURE_HANDLERS)
+VARYING_SOURCES |= TEXTURE_SOURCES

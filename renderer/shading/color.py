@@ -1,4 +1,4 @@
-"""Colour nodes with Cycles' semantics: HSV conversions (util/color.h), Hue/Saturation/Value
+"""Colour nodes with Cycles' semantics: HSV and HSL conversions (util/color.h), Hue/Saturation/Value
 (svm/hsv.h), and the view-dependent Fresnel and Layer Weight (svm/fresnel.h)."""
 
 import math
@@ -25,6 +25,35 @@ def rgb_to_hsv(c):
         if h < 0.0:
             h += 1.0
     return (h, s, cmax)
+
+
+@inline_kernel
+def rgb_to_hsl(c):
+    """(h, s, l): h in [0, 1), s >= 0, l <= 1 for any input (Separate Color, HSL)."""
+    cmax = max(c[0], max(c[1], c[2]))
+    cmin = min(c[0], min(c[1], c[2]))
+    lum = min(1.0, (cmax + cmin) / 2.0)
+    if cmax == cmin:
+        return (0.0, 0.0, lum)
+    delta = cmax - cmin
+    s = delta / (2.0 - cmax - cmin) if lum > 0.5 else delta / (cmax + cmin)
+    if cmax == c[0]:
+        h = (c[1] - c[2]) / delta + (6.0 if c[1] < c[2] else 0.0)
+    elif cmax == c[1]:
+        h = (c[2] - c[0]) / delta + 2.0
+    else:
+        h = (c[0] - c[1]) / delta + 4.0
+    return (h / 6.0, s, lum)
+
+
+@inline_kernel
+def hsl_to_rgb(c):
+    h, s, lum = c
+    nr = min(max(abs(h * 6.0 - 3.0) - 1.0, 0.0), 1.0)
+    ng = min(max(2.0 - abs(h * 6.0 - 2.0), 0.0), 1.0)
+    nb = min(max(2.0 - abs(h * 6.0 - 4.0), 0.0), 1.0)
+    chroma = (1.0 - abs(2.0 * lum - 1.0)) * s
+    return ((nr - 0.5) * chroma + lum, (ng - 0.5) * chroma + lum, (nb - 0.5) * chroma + lum)
 
 
 @inline_kernel

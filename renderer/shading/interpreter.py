@@ -13,14 +13,18 @@ import math
 
 from renderer.kernels import inline_kernel
 
-from .color import fresnel, hsv_to_rgb, hue_saturation_value, layer_weight, rgb_to_hsv
+from .color import fresnel, hsl_to_rgb, hsv_to_rgb, hue_saturation_value, layer_weight, rgb_to_hsl, rgb_to_hsv
+from .fractal import noise_texture
 from .image import image_lookup
 from .math_ops import math_op, mix_color, vector_op
 from .noise import noise_texture_3d
 from .normals import normal_map
-from .program import I_A, I_B, I_C, I_D, I_DST, I_OP, I_P0, I_P1, I_P2, OP
+from .patterns import brick, magic, wave
+from .program import I_A, I_B, I_C, I_D, I_DST, I_E, I_OP, I_P0, I_P1, I_P2, OP
 from .table import P_CODE, P_INIT, P_NCODE, P_NREGS
 from .textures import checker, gradient, mapping, ramp_lookup
+from .voronoi import voronoi_texture
+from .white_noise import white_noise
 
 ATTRIBUTE, POSITION, NORMAL = OP["attribute"], OP["position"], OP["normal"]
 MATH, VECTOR_MATH, MIX, MIX_FLOAT = OP["math"], OP["vector_math"], OP["mix"], OP["mix_float"]
@@ -30,6 +34,8 @@ CLAMP, GRADIENT, GAMMA, BRIGHT_CONTRAST = OP["clamp"], OP["gradient"], OP["gamma
 MAP_RANGE, NOISE, HSV, HSV_CONVERT = OP["map_range"], OP["noise"], OP["hsv"], OP["hsv_convert"]
 FRESNEL, LAYER_WEIGHT = OP["fresnel"], OP["layer_weight"]
 NORMAL_MAP = OP["normal_map"]
+NOISE_ND, WHITE_NOISE, VORONOI = OP["noise_nd"], OP["white_noise"], OP["voronoi"]
+WAVE, MAGIC, BRICK = OP["wave"], OP["magic"], OP["brick"]
 
 
 @inline_kernel
@@ -155,7 +161,7 @@ def run_program(st, m, regs, p, b0, b1, b2, x, n, wi, back):  # noqa: C901 - the
             _put3(regs, dst, hue_saturation_value(_v(regs, a), float(regs[b]), float(regs[b + 1]),
                                                   float(regs[b + 2]), float(regs[b + 3])))
         elif op == HSV_CONVERT:
-            _put3(regs, dst, hsv_to_rgb(_v(regs, a)) if ins[I_P0] else rgb_to_hsv(_v(regs, a)))
+            _put3(regs, dst, _convert_color(ins[I_P0], _v(regs, a)))
         elif op == FRESNEL:
             nn = _v(regs, b)
             regs[dst] = fresnel(float(regs[a]), wi[0] * nn[0] + wi[1] * nn[1] + wi[2] * nn[2], back)
@@ -174,9 +180,87 @@ def run_program(st, m, regs, p, b0, b1, b2, x, n, wi, back):  # noqa: C901 - the
         elif op == NORMAL_MAP:
             _put3(regs, dst, normal_map(_v(regs, a), float(regs[b]), _v(regs, c), float(regs[ins[I_D]]),
                                         ins[I_P0], n, back))
+        elif op == NOISE_ND:
+            _noise_nd(regs, dst, _v(regs, a), b, ins[I_P0], ins[I_P1], ins[I_P2] != 0)
+        elif op == WHITE_NOISE:
+            q = _v(regs, a)
+            value, col = white_noise(ins[I_P0], q[0], q[1], q[2], float(regs[b]))
+            regs[dst] = value
+            _put3(regs, dst + 1, col)
+        elif op == VORONOI:
+            _voronoi(regs, dst, _v(regs, a), b, ins[I_P0], ins[I_P1], ins[I_P2])
+        elif op == WAVE:
+            q = _v(regs, a)
+            s = float(regs[b])
+            regs[dst] = wave(ins[I_P0], ins[I_P1], ins[I_P2], q[0] * s, q[1] * s, q[2] * s,
+                             float(regs[b + 1]), float(regs[b + 2]), float(regs[b + 3]), float(regs[b + 4]),
+                             float(regs[b + 5]))
+        elif op == MAGIC:
+            q = _v(regs, a)
+            col = magic(q[0], q[1], q[2], float(regs[b]), ins[I_P0], float(regs[b + 1]))
+            _put3(regs, dst, col)
+            regs[dst + 3] = (col[0] + col[1] + col[2]) * (1.0 / 3.0)
+        elif op == BRICK:
+            _brick(regs, dst, _v(regs, a), b, _v(regs, c), _v(regs, ins[I_D]), _v(regs, ins[I_E]), ins[I_P0],
+                   ins[I_P1])
         elif op == MAP_RANGE:
             regs[dst] = _map_range(float(regs[a]), float(regs[b]), float(regs[b + 1]), float(regs[b + 2]),
                                    float(regs[b + 3]), float(regs[b + 4]), ins[I_P0], ins[I_P1] != 0)
+
+
+@inline_kernel
+def _noise_nd(regs, dst, q, b, dim, kind, normalize):
+    """Noise Texture of any dimension and type: (q, W) scaled by regs[b + 1], as
+    svm_node_tex_noise; 1D noise reads W alone."""
+    s = float(regs[b + 1])
+    w = float(regs[b]) * s
+    x, y, z = q[0] * s, q[1] * s, q[2] * s
+    if dim == 1:
+        x, y, z, w = w, 0.0, 0.0, 0.0
+    elif dim == 2:
+        z, w = 0.0, 0.0
+    elif dim == 3:
+        w = 0.0
+    value, col = noise_texture(dim, kind, x, y, z, w, float(regs[b + 2]), float(regs[b + 3]),
+                               float(regs[b + 4]), float(regs[b + 5]), float(regs[b + 6]),
+                               float(regs[b + 7]), normalize)
+    regs[dst] = value
+    _put3(regs, dst + 1, col)
+
+
+@inline_kernel
+def _voronoi(regs, dst, q, b, dim, feature, flags):
+    d, col, pos, radius = voronoi_texture(dim, feature, flags & 3, (flags & 4) != 0, q[0], q[1], q[2],
+                                          float(regs[b]), float(regs[b + 1]), float(regs[b + 2]),
+                                          float(regs[b + 3]), float(regs[b + 4]), float(regs[b + 5]),
+                                          float(regs[b + 6]), float(regs[b + 7]))
+    regs[dst] = d
+    _put3(regs, dst + 1, col)
+    _put3(regs, dst + 4, (pos[0], pos[1], pos[2]))
+    regs[dst + 7] = pos[3]
+    regs[dst + 8] = radius
+
+
+@inline_kernel
+def _brick(regs, dst, q, b, c1, c2, mortar, offset_frequency, squash_frequency):
+    """svm_node_tex_brick: the brick's tint mixes Color1 and Color2, the mortar covers both."""
+    s = float(regs[b])
+    tint, f = brick(q[0] * s, q[1] * s, float(regs[b + 1]), float(regs[b + 2]), float(regs[b + 3]),
+                    float(regs[b + 4]), float(regs[b + 5]), float(regs[b + 6]), offset_frequency,
+                    float(regs[b + 7]), squash_frequency)
+    for ch in range(3):
+        base = (1.0 - tint) * c1[ch] + tint * c2[ch] if f != 1.0 else c1[ch]
+        regs[dst + ch] = base * (1.0 - f) + mortar[ch] * f
+    regs[dst + 3] = f
+
+
+@inline_kernel
+def _convert_color(kind, c):
+    if kind == 0:
+        return rgb_to_hsv(c)
+    if kind == 1:
+        return hsv_to_rgb(c)
+    return rgb_to_hsl(c) if kind == 2 else hsl_to_rgb(c)
 
 
 @inline_kernel

@@ -56,13 +56,26 @@ OPCODES = (
     "gamma",       # dst(3) = colour a ^ gamma b
     "bright_contrast",  # dst(3) = Bright/Contrast of colour a, bright b, contrast c
     "hsv",         # dst(3) = Hue/Saturation/Value of colour a: b..b+3 = hue, saturation, value, factor
-    "hsv_convert",  # dst(3) = colour a to HSV (i0 0) or HSV to RGB (i0 1)
+    "hsv_convert",  # dst(3) = colour a to HSV (i0 0), HSV to RGB (1), to HSL (2), HSL to RGB (3)
     "fresnel",     # dst = Fresnel of IOR a with normal b (3), the view direction and the face side
     "layer_weight",  # dst = Layer Weight of blend a with normal b: i0 0 Fresnel, 1 Facing
     "noise",       # dst factor, dst+1..3 colour: Noise (3D fBM) of vector a; b..b+4 = scale,
                    # detail, roughness, lacunarity, distortion; i0 normalize
     "normal_map",  # dst(3) = Normal Map of colour a, strength b, tangent c (3), bitangent sign d;
                    # i0 space (names.NORMAL_MAP_SPACES)
+    "noise_nd",    # dst factor, dst+1..3 colour: Noise Texture of vector a; b..b+7 = W, scale, detail,
+                   # roughness, lacunarity, offset, gain, distortion; i0 dimensions (1-4),
+                   # i1 type (fractal.TYPES), i2 normalize
+    "white_noise",  # dst value, dst+1..3 colour: White Noise of vector a and W b; i0 dimensions (1-4)
+    "voronoi",     # dst distance, dst+1..3 colour, dst+4..6 position, dst+7 W, dst+8 radius: Voronoi of
+                   # vector a; b..b+7 = W, scale, detail, roughness, lacunarity, smoothness, exponent,
+                   # randomness; i0 dimensions, i1 feature, i2 metric + 4 normalize (voronoi_cells)
+    "wave",        # dst = Wave of vector a; b..b+5 = scale, distortion, detail, detail scale, detail
+                   # roughness, phase; i0 type, i1 direction, i2 profile (patterns.py)
+    "magic",       # dst(3) colour, dst+3 factor: Magic of vector a; b, b+1 = scale, distortion; i0 depth
+    "brick",       # dst(3) colour, dst+3 factor: Brick of vector a; b..b+7 = scale, mortar size, mortar
+                   # smooth, bias, brick width, row height, offset, squash; colours c, d, mortar e;
+                   # i0 offset frequency, i1 squash frequency
 )
 OP = {name: code for code, name in enumerate(OPCODES)}
 
