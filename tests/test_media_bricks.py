@@ -14,6 +14,7 @@ from renderer.media.grid import grid_lookup, grid_lookup3
 from renderer.media.layout import GRID_BLACKBODY, GRID_DENSITY, I_MAJ_DIMS, I_MAJ_OFFSET
 from renderer.render import render_progressive
 from renderer.scene import Medium
+from renderer.scenefile import load_scene, save_scene
 
 
 def _blobby(shape, seed):
@@ -177,3 +178,15 @@ def test_sparse_smoke_ball_renders_the_dense_image():
         se = np.hypot(ses[0], ses[1])
         assert np.all(np.abs(means[0] - means[1]) <= 5.0 * se + 1e-5 * np.abs(means[0])), (means, se)
     assert not np.array_equal(dense.mean(), sparse.mean())  # a different estimator indeed
+
+
+def test_scene_folder_writes_a_sparse_grid_dense(tmp_path):
+    """The scene folder format holds dense grids: a sparse one is written out in full and
+    reads back as the same voxels."""
+    scene = smoke_ball(8, 1)
+    medium = next(m for m in scene.media if m.type == "grid")
+    dense = medium.density.copy()
+    medium.density = to_sparse(dense)
+    save_scene(scene, tmp_path)
+    loaded = next(m for m in load_scene(tmp_path).media if m.type == "grid")
+    np.testing.assert_array_equal(loaded.density, dense)
