@@ -5,7 +5,8 @@ Other studies register here as subcommands (see COMMANDS)."""
 import importlib
 import sys
 
-COMMANDS = {"speed": "bench.speed", "convergence": "bench.convergence", "contrast": "bench.contrast"}
+COMMANDS = {"speed": "bench.speed", "convergence": "bench.convergence", "contrast": "bench.contrast",
+            "cloud512": "bench.cloud512"}
 
 
 def main(argv: list[str]) -> int:

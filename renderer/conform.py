@@ -94,6 +94,9 @@ def split_optional(hint: Any) -> tuple[Any, bool]:
     return (rest[0] if len(rest) == 1 else typing.Union[rest]), True  # noqa: UP007
 
 
+SPARSE_FIELDS = ("density", "flame", "temperature")  # Medium's grids
+
+
 # ----------------------------------------------- conforming: types, finiteness, normalising
 
 
@@ -113,8 +116,19 @@ def conform(value: Any, hint: Any, path: str, field_name: str) -> Any:
     if hint is np.ndarray and field_name in MATRIX_FIELDS:
         return _conform_matrix(value, path)
     if hint is np.ndarray:
+        if _is_sparse_grid(value, field_name):
+            return value  # checked as a grid by renderer.validate
         return _conform_array(value, ARRAY_DTYPES[field_name], path)
     return _conform_scalar(value, hint, path)
+
+
+def _is_sparse_grid(value: Any, field_name: str) -> bool:
+    """A Medium grid field may hold a SparseGrid (renderer.media.bricks) instead of an array."""
+    if field_name not in SPARSE_FIELDS or isinstance(value, np.ndarray):
+        return False
+    from renderer.media.bricks import SparseGrid  # lazily: renderer.media imports this module
+
+    return isinstance(value, SparseGrid)
 
 
 def conform_object(value: Any, classes: tuple[type, ...], path: str) -> Any:

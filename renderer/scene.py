@@ -297,7 +297,9 @@ class Medium:
     g: float = 0.0  # Henyey-Greenstein asymmetry, |g| < 1
     emission: RGB = (0.0, 0.0, 0.0)  # W/(m^3 sr) per unit density/flame
     # grid media only
-    density: np.ndarray | None = None  # (nz, ny, nx) float32, x fastest, >= 0
+    # (nz, ny, nx) float32, x fastest, >= 0; density, flame and temperature may also be
+    # SparseGrids (renderer/media/bricks.py), stored as bricks of occupied voxels
+    density: np.ndarray | None = None
     p0: RGB = (0.0, 0.0, 0.0)
     p1: RGB = (1.0, 1.0, 1.0)
     to_world: np.ndarray = field(default_factory=lambda: np.eye(4))  # (4, 4) float64

@@ -298,6 +298,10 @@ def _check_npy_header(file: Path, dtype: np.dtype, path: str, shown: str) -> Non
 
 def _encode(value: Any, field_name: str, owner: str, write_array: Callable[[np.ndarray, str], str]) -> Any:
     """The JSON form of `value`; data arrays are written by `write_array`, which names the file."""
+    from renderer.media.bricks import SparseGrid  # lazily: renderer.media imports the scene modules
+
+    if isinstance(value, SparseGrid):  # the format holds dense grids: written out in full
+        return write_array(value.to_dense(), f"{owner}_{field_name}")
     if dataclasses.is_dataclass(value):
         fields = dataclasses.fields(value)
         encoded = {f.name: _encode(getattr(value, f.name), f.name, owner, write_array) for f in fields}

@@ -454,10 +454,32 @@ def _check_medium_products(
     _check_magnitude(blackbody, f"{path}.temperature", "blackbody radiance * max density")
 
 
-def _check_grid_array(grid: np.ndarray, path: str) -> None:
+def _check_grid_array(grid, path: str) -> None:
+    from renderer.media.bricks import SparseGrid  # lazily: renderer.media imports this module
+
+    if isinstance(grid, SparseGrid):
+        _check_sparse_grid(grid, path)
+        return
     require(grid.ndim == 3, path, f"must be 3-D (nz, ny, nx), got shape {grid.shape}")
     require(grid.size > 0, path, f"must not be empty, got shape {grid.shape}")
     require(bool((grid >= 0.0).all()), path, f"must not be negative, got minimum {float(grid.min())}")
+
+
+def _check_sparse_grid(grid, path: str) -> None:
+    """A SparseGrid (renderer.media.bricks) whose index and bricks agree."""
+    from renderer.media.bricks import SPAN, lattice_shape
+
+    require(len(grid.shape) == 3 and min(grid.shape) > 0, path, f"must have a 3-D shape, got {grid.shape}")
+    require(grid.index.shape == lattice_shape(grid.shape) and grid.index.dtype == np.int32, path,
+            f"brick index must be int32 of shape {lattice_shape(grid.shape)}, got {grid.index.dtype} "
+            f"{grid.index.shape}")
+    require(grid.bricks.ndim == 4 and grid.bricks.shape[1:] == (SPAN, SPAN, SPAN), path,
+            f"bricks must be (B, {SPAN}, {SPAN}, {SPAN}), got {grid.bricks.shape}")
+    used = grid.index[grid.index >= 0]
+    require(bool(used.size == 0 or used.max() < len(grid.bricks)) and bool((grid.index >= -1).all()), path,
+            f"brick index refers to bricks outside 0..{len(grid.bricks) - 1}")
+    require(bool(np.isfinite(grid.bricks).all()), path, "must be finite")
+    require(grid.min() >= 0.0, path, f"must not be negative, got minimum {grid.min()}")
 
 
 def _check_grid_box(medium: Medium, path: str) -> None:

@@ -35,6 +35,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from renderer.media.bricks import SparseGrid
 from renderer.scene import Material, Medium, Mesh
 
 from .grid_fields import FieldBuilder, GridMedium, clean_grid, crop_to_voxels, evaluate_fields, shape_text
@@ -42,11 +43,17 @@ from .grid_sampler import GridInfo, GridSampler, VolumeInfo, index_box
 from .materials import MaterialLibrary
 from .messages import Messages, material_subject, object_subject
 from .smoke import CACHE_GRIDS, SmokeCache, smoke_cache
+from .sparse_volume import build_sparse
+from .vdb_reader import VdbFile
 from .volume_shader import VoxelCoefficients, evaluate_volume_material, grids_a_material_reads
 
 INTERFACE_MATERIAL = "Haze Volume Boundary"
 CROP_GRIDS = True  # tests switch it off to measure what cropping saves
 MAX_VOXELS = 1 << 28  # dense grids beyond this (1 GB per float32 grid) are refused
+# Volume objects loading a .vdb file whose index box holds at least this many voxels are
+# read sparsely (vdb_reader: 8^3 bricks of the occupied voxels only); smaller ones through
+# the sampler into dense grids, which look up a little faster. Tests set it to 0.
+SPARSE_MIN_VOXELS = 1 << 18
 BOX_TRIANGLES = np.array([
     (0, 2, 1), (1, 2, 3), (4, 5, 6), (5, 7, 6),  # z = p0, z = p1
     (0, 1, 4), (1, 5, 4), (2, 6, 3), (3, 6, 7),  # y = p0, y = p1
@@ -82,6 +89,9 @@ def boundary_box(grid: GridMedium) -> tuple[np.ndarray, np.ndarray]:
     start = np.asarray(grid.start, np.float64)
     shape = np.array(grid.density.shape[::-1])
     full = (start - 0.5, start + shape - 0.5)
+    if isinstance(grid.density, SparseGrid):  # sparse_volume: a density grid alone
+        empty = grid.density.shell_max() == 0.0 and not np.any(np.asarray(grid.emission) != 0.0)
+        return (start, start + shape - 1.0) if empty and np.all(shape >= 3) else full
     if np.any(shape < 3) or (grid.flame is None and np.any(np.asarray(grid.emission) != 0.0)):
         return full
     from renderer.media.blackbody import blackbody_emission_voxels
@@ -117,6 +127,7 @@ class VolumeSource:
     material: object | None
     clipping: float
     target: object | None = None  # the original volume object
+    filepath: str = ""  # the .vdb file (this frame's, for a sequence) a modifier-free volume loads
     smoke: SmokeCache | None = None
     grid_names: dict[str, str] = field(default_factory=dict)  # material attribute -> grid in the volume
 
@@ -188,8 +199,10 @@ class VolumeExporter:
                 self.messages.warn(material_subject(material.name_full), "cubic volume interpolation is "
                                    "rendered as linear")
         data_key = original.name_full if len(original.modifiers) else "data:" + original.data.name_full
-        key = ("volume", data_key, material.name_full if material is not None else "")
-        return VolumeSource(key, subject, material, float(obj.data.render.clipping), target=original)
+        filepath = "" if len(original.modifiers) else volume_file(obj.data)
+        key = ("volume", data_key, material.name_full if material is not None else "", filepath)
+        return VolumeSource(key, subject, material, float(obj.data.render.clipping), target=original,
+                            filepath=filepath)
 
     def _smoke_source(self, obj) -> VolumeSource | None:
         cache = smoke_cache(obj, self.frame, self.messages)
@@ -247,6 +260,13 @@ class VolumeExporter:
         return None
 
     def _read_and_build(self, sampler: GridSampler, source: VolumeSource) -> GridMedium | None:
+        if source.filepath:
+            try:
+                medium = self._read_sparse(source)
+            except (OSError, RuntimeError, KeyError, ValueError):  # the sampler reads it, or says why not
+                medium = None
+            if medium is not None:
+                return medium
         target = source.target if source.smoke is None else sampler.file_volume(source.smoke.path)
         info = sampler.inspect(target)
         if not info.grids:
@@ -265,6 +285,38 @@ class VolumeExporter:
         if CROP_GRIDS and self._empty_without_grids(source, raw):
             raw, start = crop_to_voxels(raw, np.asarray(start))
         return self._build(source, raw, start, read_shape, primary)
+
+    def _read_sparse(self, source: VolumeSource) -> GridMedium | None:
+        """The volume's file read into bricks (vdb_reader, sparse_volume), or None when the
+        sampler path should read it: a small box, grids that are not float, a material that
+        is not constant coefficients times one grid."""
+        vdb = VdbFile(source.filepath)
+        info = vdb.info()
+        if not info.grids:
+            return None
+        wanted = self._wanted_grids(source, info)
+        if not wanted or not all(vdb.sparse_readable(name) for name in wanted.values()):
+            return None
+        primary = info.grids[wanted.get("density") or next(iter(wanted.values()))]
+        if any(not np.allclose(info.grids[g].index_to_object, primary.index_to_object, rtol=1e-6, atol=1e-9)
+               for g in wanted.values()):
+            return None  # the sampler path leaves misaligned grids out, with a warning
+        start, shape = index_box(primary, info.bounds)
+        if int(np.prod(shape)) < SPARSE_MIN_VOXELS:
+            return None
+        grids = vdb.read_bricks(wanted, start, shape, source.clipping, source.subject, self.messages)
+        if grids is None or not any(len(g.bricks) and g.max() > 0.0 for g in grids.values()):
+            return None
+        zero = {name: np.zeros(1, np.float32) for name in grids}
+        if not self._empty_without_grids(source, zero):
+            return None  # the material gives something where every grid is 0: dense path
+        built = build_sparse(grids, lambda values: self._coefficients(source, values), np.asarray(start),
+                             primary.index_to_object)
+        if built is None:
+            return None
+        medium, fields = built
+        FieldBuilder(source.subject, self.messages, (1, 1, 1), {}).warn_blackbody(fields)
+        return medium
 
     def _empty_without_grids(self, source: VolumeSource, raw: dict[str, np.ndarray]) -> bool:
         """Whether the material gives nothing where every grid it reads is 0: then the grids
@@ -346,6 +398,17 @@ class VolumeExporter:
             self.messages.warn(source.subject, f"material '{source.material.name_full}' has no Volume "
                                                "shader; the volume is not rendered (as in Cycles)")
         return coefficients
+
+
+def volume_file(volume) -> str:
+    """The absolute path of the .vdb file a Volume datablock renders at the evaluated frame
+    (a sequence's frame file), or "" for none or a packed file (read by the sampler)."""
+    import bpy
+
+    if not volume.filepath or volume.packed_file is not None:
+        return ""
+    path = volume.grids.frame_filepath if volume.is_sequence else volume.filepath
+    return bpy.path.abspath(path, library=volume.library) if path else ""
 
 
 def default_volume_coefficients(grids: dict[str, np.ndarray]) -> VoxelCoefficients:

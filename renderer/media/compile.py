@@ -14,6 +14,7 @@ import math
 import numpy as np
 
 from renderer.media.blackbody import blackbody_emission_voxels
+from renderer.media.bricks import BRICK, SPAN, SparseGrid
 from renderer.media.layout import (
     CELL,
     CELL_DENSITY_BOUND,
@@ -37,6 +38,9 @@ from renderer.validate import validate_medium
 # cells bound sparse data tightly, and a 64^3 cap keeps the DDA walk short.
 MAJ_VOXELS = 4
 MAJ_MAX_CELLS = 64
+# Sparse grids (bricks.py) get one cell per brick up to this many per axis (a 1024^3 grid:
+# 128^3 cells of 12 bytes, 25 MB).
+SPARSE_MAX_CELLS = 128
 # Tentative collisions per majorant cell crossed inside emitting cells (see emission_rate).
 EMISSION_COLLISIONS_PER_CELL = 2.0
 # A cell is crossed by regular tracking (regular.py) when its bound exceeds the least density
@@ -66,30 +70,55 @@ def build_media_data(media: list[Medium], use_majorant_grid: bool = True) -> Med
     for i, med in enumerate(media):
         validate_medium(med, f"media[{i}]")
         _fill_medium(params[i], index[i], med, store, use_majorant_grid)
-    return MediaData(params, index, store.grid_data(), store.maj_data())
+    return MediaData(params, index, store.grid_data(), store.brick_index(), store.maj_data())
 
 
 class _ArrayStore:
-    """grid_data and maj_data under construction. Instances of one volume share their arrays
-    (the exporter passes the same objects), so each array is stored once, keyed by identity
-    (the media list keeps the arrays alive meanwhile)."""
+    """grid_data, brick_index and maj_data under construction. Instances of one volume share
+    their arrays (the exporter passes the same objects), so each array is stored once, keyed
+    by identity (the media list keeps the arrays alive meanwhile). A sparse grid is stored as
+    an all-zero brick, then its bricks; its lattice (brick numbers + 1, so empty ones point
+    at the zero brick) once per index array, which the grids of one volume share."""
 
     def __init__(self) -> None:
         self.grids: list[np.ndarray] = []
         self.grid_size = 0
-        self.grid_at: dict[tuple, tuple[int, tuple[int, int, int], np.ndarray]] = {}
+        self.grid_at: dict[tuple, tuple[int, tuple[int, int, int], object, int]] = {}
+        self.lattices: list[np.ndarray] = []
+        self.lattice_size = 0
+        self.lattice_at: dict[int, tuple[int, np.ndarray]] = {}
         self.majs: list[np.ndarray] = []
         self.maj_size = 0
         self.maj_at: dict[tuple, tuple[int, tuple[int, int, int]]] = {}
 
-    def grid(self, key: tuple, make) -> tuple[int, tuple[int, int, int], np.ndarray]:
-        """(offset, (nx, ny, nz), array) of the grid `make()` gives, stored once per key."""
+    def grid(self, key: tuple, make) -> tuple[int, tuple[int, int, int], object, int]:
+        """(offset, (nx, ny, nz), grid, lattice offset or -1 if dense) of the grid `make()`
+        gives (an array or a SparseGrid), stored once per key."""
         if key not in self.grid_at:
-            arr = np.ascontiguousarray(make(), dtype=np.float32)
-            self.grid_at[key] = (self.grid_size, (arr.shape[2], arr.shape[1], arr.shape[0]), arr)
-            self.grids.append(arr.ravel())
-            self.grid_size += arr.size
+            grid = make()
+            if isinstance(grid, SparseGrid):
+                lattice = self._lattice(grid.index)
+                zero = np.zeros((1,) + grid.bricks.shape[1:], np.float32)
+                flat = np.concatenate([zero.ravel(), np.ascontiguousarray(grid.bricks, np.float32).ravel()])
+                shape = grid.shape
+            else:
+                grid = np.ascontiguousarray(grid, dtype=np.float32)
+                flat, shape, lattice = grid.ravel(), grid.shape, -1
+            self.grid_at[key] = (self.grid_size, (shape[2], shape[1], shape[0]), grid, lattice)
+            self.grids.append(flat)
+            self.grid_size += flat.size
         return self.grid_at[key]
+
+    def _lattice(self, index: np.ndarray) -> int:
+        if id(index) not in self.lattice_at:  # the array is kept too, so its id stays its own
+            self.lattice_at[id(index)] = (self.lattice_size, index)
+            self.lattices.append((index.astype(np.int64).ravel() + 1).astype(np.int32))
+            self.lattice_size += index.size
+        return self.lattice_at[id(index)][0]
+
+    def brick_index(self) -> np.ndarray:
+        data = np.concatenate(self.lattices) if self.lattices else np.zeros(1, np.int32)
+        return np.ascontiguousarray(data, np.int32)
 
     def majorant(self, key: tuple, make) -> tuple[int, tuple[int, int, int]]:
         """(offset, (cx, cy, cz)) of the (cz, cy, cx, CELL.size) cells `make()` gives."""
@@ -131,7 +160,7 @@ def _fill_medium(params: np.ndarray, index: np.ndarray, med: Medium, store: _Arr
     to_unit, axis_lengths = _world_to_unit(med)
     params[PARAMS.slice("to_unit")] = to_unit.ravel()
     blackbody_grid = _store_grids(index, med, store, emits_blackbody)
-    cells = _majorant_cells(med.density.shape, use_majorant_grid)
+    cells = _majorant_cells(med.density, use_majorant_grid)
     emits = bool(index[I_HAS_EMISSION])
     diagonal = math.sqrt(sum((n / c) ** 2 for c, n in zip(cells, axis_lengths)))
     exact_excess = math.inf  # the paper's single bound: null collisions only
@@ -152,6 +181,8 @@ def _store_grids(index: np.ndarray, med: Medium, store: _ArrayStore, emits_black
     returns its GRID_BLACKBODY array (None without one)."""
     offsets = index[INDEX.slice("grid_offset")]
     dims = index[INDEX.slice("grid_dims")].reshape(len(GRID_NAMES), 3)
+    lattices = index[INDEX.slice("grid_bricks")]
+    lattices[:] = -1
     blackbody_grid = None
     for which, name in enumerate(GRID_NAMES):
         source = getattr(med, name)
@@ -161,8 +192,11 @@ def _store_grids(index: np.ndarray, med: Medium, store: _ArrayStore, emits_black
             key = (which, id(source), med.blackbody_intensity)
             make = functools.partial(_blackbody_grid, source, med.blackbody_intensity)
         else:
-            key, make = (which, id(source), 0.0), functools.partial(np.asarray, source)
-        offsets[which], dims[which], stored = store.grid(key, make)
+            # A SparseGrid is stored as it is (np.asarray would wrap it in an object array).
+            keep = isinstance(source, SparseGrid)
+            make = (lambda s=source: s) if keep else functools.partial(np.asarray, source)
+            key = (which, id(source), 0.0)
+        offsets[which], dims[which], stored, lattices[which] = store.grid(key, make)
         if which == GRID_BLACKBODY:
             blackbody_grid = stored
     return blackbody_grid
@@ -174,7 +208,9 @@ def _majorant(med: Medium, cells: tuple[int, int, int], emits: bool, emits_const
     their least density by more than `exact_excess` are flagged for regular tracking, unless
     they emit (emission is estimated at tentative collisions, which regular tracking has not)."""
     maj = np.zeros((cells[2], cells[1], cells[0], CELL.size), np.float32)
-    density = np.ascontiguousarray(med.density, np.float32)
+    density = med.density
+    if not isinstance(density, SparseGrid):
+        density = np.ascontiguousarray(density, np.float32)
     bound = _cell_max(density, cells)
     maj[..., CELL_DENSITY_BOUND] = bound
     if emits:
@@ -211,10 +247,12 @@ def _world_to_unit(med: Medium) -> tuple[np.ndarray, tuple[float, float, float]]
 # ------------------------------------------------------------------------------ majorants
 
 
-def _majorant_cells(shape: tuple[int, int, int], use_majorant_grid: bool) -> tuple[int, int, int]:
+def _majorant_cells(grid, use_majorant_grid: bool) -> tuple[int, int, int]:
     if not use_majorant_grid:
         return (1, 1, 1)
-    nz, ny, nx = shape
+    nz, ny, nx = grid.shape[:3]
+    if isinstance(grid, SparseGrid):  # bounds come per brick: finer cells would not be tighter
+        return tuple(max(1, min(SPARSE_MAX_CELLS, -(-n // BRICK))) for n in (nx, ny, nz))
     return tuple(max(1, min(MAJ_MAX_CELLS, -(-n // MAJ_VOXELS))) for n in (nx, ny, nz))
 
 
@@ -230,9 +268,12 @@ def _voxel_range(c: int, cells: int, n: int) -> tuple[int, int]:
     return max(0, lo), min(n - 1, hi)
 
 
-def _cell_max(grid: np.ndarray, cells: tuple[int, int, int], reduce=np.max) -> np.ndarray:
+def _cell_max(grid, cells: tuple[int, int, int], reduce=np.max) -> np.ndarray:
     """(cz, cy, cx) max (or `reduce`) of `grid` over each cell's voxel range: three
-    separable 1-D passes."""
+    separable 1-D passes. For a SparseGrid, over the bricks that hold part of that range
+    (a bound as valid, a brick looser at most)."""
+    if isinstance(grid, SparseGrid):
+        return _sparse_cell_reduce(grid, cells, reduce)
     out = grid
     for axis, c in zip((2, 1, 0), cells):  # numpy axis 2 is x
         n = out.shape[axis]
@@ -244,9 +285,34 @@ def _cell_max(grid: np.ndarray, cells: tuple[int, int, int], reduce=np.max) -> n
     return out
 
 
-def _blackbody_grid(temperature: np.ndarray, intensity: float) -> np.ndarray:
-    """(nz, ny, nx, 3) float32 blackbody emission of every voxel (see GRID_BLACKBODY)."""
-    return blackbody_emission_voxels(np.asarray(temperature, np.float32), float(intensity)).astype(np.float32)
+def _sparse_cell_reduce(grid: SparseGrid, cells: tuple[int, int, int], reduce) -> np.ndarray:
+    """_cell_max over a SparseGrid's per-brick reductions (empty bricks give 0). Brick b
+    stores voxels 8 b .. 8 b + 8 on each axis, so the bricks b with 8 b <= hi and
+    8 b + 8 >= lo hold the voxels lo..hi of a cell's range."""
+    out = grid.brick_reduce(reduce)
+    for axis, c, n in zip((2, 1, 0), cells, grid.shape[::-1]):
+        parts = []
+        for k in range(c):
+            lo, hi = _voxel_range(k, c, n)
+            first, last = max(0, -(-(lo - SPAN + 1) // BRICK)), min(out.shape[axis] - 1, hi // BRICK)
+            block = np.take(out, np.arange(first, last + 1), axis=axis)
+            parts.append(reduce(block, axis=axis, keepdims=True))
+        out = np.concatenate(parts, axis=axis)
+    return out
+
+
+def _blackbody_grid(temperature, intensity: float):
+    """(nz, ny, nx, 3) float32 blackbody emission of every voxel (see GRID_BLACKBODY), or a
+    3-channel SparseGrid of it for a sparse temperature grid (dense when 0 K emits, since
+    its empty bricks would then not read 0)."""
+    def emission(t):
+        return blackbody_emission_voxels(np.asarray(t, np.float32), float(intensity)).astype(np.float32)
+
+    if isinstance(temperature, SparseGrid):
+        if np.any(emission(np.zeros(1))):
+            return emission(temperature.to_dense())
+        return temperature.map(emission)
+    return emission(temperature)
 
 
 def _emitting_cells(med: Medium, cells: tuple[int, int, int], constant: bool,
@@ -257,8 +323,11 @@ def _emitting_cells(med: Medium, cells: tuple[int, int, int], constant: bool,
         return np.ones((cells[2], cells[1], cells[0]), np.float32)
     emits = np.zeros((cells[2], cells[1], cells[0]), np.float32)
     if constant:
-        emits = np.maximum(emits, _cell_max(np.asarray(med.flame, np.float32), cells) > 0.0)
+        flame = med.flame if isinstance(med.flame, SparseGrid) else np.asarray(med.flame, np.float32)
+        emits = np.maximum(emits, _cell_max(flame, cells) > 0.0)
     if blackbody is not None:
         # Voxels of any temperature emit when b < 1: Cycles' mix(1, T^4, b) is then positive at T = 0.
-        emits = np.maximum(emits, _cell_max(np.abs(blackbody).max(axis=-1), cells) > 0.0)
+        sparse = isinstance(blackbody, SparseGrid)
+        strength = blackbody.map(np.abs) if sparse else np.abs(blackbody).max(axis=-1)
+        emits = np.maximum(emits, _cell_max(strength, cells) > 0.0)
     return emits.astype(np.float32)

@@ -5,11 +5,19 @@ matrix. Voxel (i, j, k) of an (nx, ny, nz) grid sits at ((i + 0.5)/nx, (j + 0.5)
 (k + 0.5)/nz); values are trilinear between voxel centres and clamp to the edge voxels
 inside [0, 1]^3 (so a constant grid is exactly a homogeneous medium and a 1x1x1 grid a
 homogeneous box); outside the box every grid reads 0. Homogeneous media have density 1.
+
+A grid is dense or sparse (bricks.py, layout.grid_bricks): both find the same eight voxels
+and mix them with the same arithmetic, so they give bit-identical values; a sparse grid
+only adds one read of its brick index.
 """
+
+import numpy as np
 
 from renderer.kernels import inline_kernel
 from renderer.media.layout import GRID_DENSITY, P_TO_UNIT
-from renderer.media.table import grid_dim, grid_offset, is_grid
+from renderer.media.table import grid_bricks, grid_dim, grid_offset, is_grid
+
+_SPAN = 9  # stored voxels per brick and axis (bricks.SPAN: 8 and the next brick's first)
 
 
 @inline_kernel
@@ -58,10 +66,22 @@ def _cell(mt, m, which, u, channels):
     i, fx = _axis(u[0], nx)
     j, fy = _axis(u[1], ny)
     k, fz = _axis(u[2], nz)
+    lattice = grid_bricks(mt, m, which)
+    if lattice < 0:  # dense
+        di = channels if i + 1 < nx else 0
+        dj = channels * nx if j + 1 < ny else 0
+        dk = channels * nx * ny if k + 1 < nz else 0
+        b = grid_offset(mt, m, which) + channels * ((k * ny + j) * nx + i)
+        return b, di, dj, dk, fx, fy, fz
+    # Sparse: the brick holding voxel (i, j, k) holds the whole stencil (its apron).
+    bx = (nx + 7) >> 3
+    by = (ny + 7) >> 3
+    brick = np.int64(mt.brick_index[lattice + ((k >> 3) * by + (j >> 3)) * bx + (i >> 3)])
     di = channels if i + 1 < nx else 0
-    dj = channels * nx if j + 1 < ny else 0
-    dk = channels * nx * ny if k + 1 < nz else 0
-    b = grid_offset(mt, m, which) + channels * ((k * ny + j) * nx + i)
+    dj = channels * _SPAN if j + 1 < ny else 0
+    dk = channels * _SPAN * _SPAN if k + 1 < nz else 0
+    local = ((k & 7) * _SPAN + (j & 7)) * _SPAN + (i & 7)
+    b = grid_offset(mt, m, which) + channels * (brick * (_SPAN * _SPAN * _SPAN) + local)
     return b, di, dj, dk, fx, fy, fz
 
 

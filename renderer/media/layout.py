@@ -20,15 +20,23 @@ media; a medium id is its index in the scene's list.
         has_emission       1 if the medium can emit anywhere (else emission costs nothing)
         grid_offset        [w]: start of grid w (GRID_DENSITY, GRID_FLAME, GRID_BLACKBODY) in
                            grid_data, -1 when absent
-        grid_dims          [3 w + a]: size of grid w along axis a (x, y, z); voxel (i, j, k) is
-                           grid_data[offset + (k * ny + j) * nx + i]; GRID_BLACKBODY holds
-                           three values per voxel, its channel c at 3 (that index) + c
+        grid_dims          [3 w + a]: size of grid w along axis a (x, y, z); voxel (i, j, k) of a
+                           dense grid is grid_data[offset + (k * ny + j) * nx + i];
+                           GRID_BLACKBODY holds three values per voxel, its channel c at
+                           3 (that index) + c
+        grid_bricks        [w]: -1 for a dense grid; for a sparse one (bricks.py) the start of
+                           its brick lattice in brick_index: the stored brick of voxel
+                           (i, j, k) is b = brick_index[that + ((k >> 3) by + (j >> 3)) bx +
+                           (i >> 3)] (brick 0 is all zeros: empty bricks point at it) and the
+                           voxel is grid_data[offset + 729 b + ((k & 7) 9 + (j & 7)) 9 + (i & 7)]
+                           (times 3, + c, for GRID_BLACKBODY)
         maj_offset         first cell of the medium's majorant grid in maj_data (-1 if none)
         maj_dims           [a]: majorant cells along unit-cube axis a
     grid_data (N,)        float32  every grid, x fastest. The temperature grid is stored as
                                    GRID_BLACKBODY, the RGB blackbody emission of every voxel
                                    (intensity applied), which the kernels interpolate: Cycles'
                                    semantics (see renderer.media.blackbody)
+    brick_index (L,)      int32    the brick lattices of sparse grids, x fastest (see grid_bricks)
     maj_data  (K, CELL.size) float32  per majorant cell (x fastest): the max density that
                                    trilinear interpolation can reach inside the cell, 1.0
                                    if the cell can emit else 0.0, and 1.0 if rays cross the
@@ -82,6 +90,7 @@ INDEX = Layout("medium index", [
     ("has_emission", 1),
     ("grid_offset", len(GRID_NAMES)),
     ("grid_dims", 3 * len(GRID_NAMES)),
+    ("grid_bricks", len(GRID_NAMES)),
     ("maj_offset", 1),
     ("maj_dims", 3),
 ])
@@ -89,6 +98,7 @@ I_KIND = INDEX.offset("kind")
 I_HAS_EMISSION = INDEX.offset("has_emission")
 I_GRID_OFFSET = INDEX.offset("grid_offset")
 I_GRID_DIMS = INDEX.offset("grid_dims")
+I_GRID_BRICKS = INDEX.offset("grid_bricks")
 I_MAJ_OFFSET = INDEX.offset("maj_offset")
 I_MAJ_DIMS = INDEX.offset("maj_dims")
 I_SIZE = INDEX.size
@@ -134,6 +144,7 @@ class MediaTable(NamedTuple):
     params: np.ndarray
     index: np.ndarray
     grid_data: np.ndarray
+    brick_index: np.ndarray
     maj_data: np.ndarray
     scratch: np.ndarray
 
@@ -144,6 +155,7 @@ class MediaData(NamedTuple):
     params: np.ndarray
     index: np.ndarray
     grid_data: np.ndarray
+    brick_index: np.ndarray
     maj_data: np.ndarray
 
     @property
@@ -153,7 +165,7 @@ class MediaData(NamedTuple):
 
     def with_scratch(self, scratch: np.ndarray) -> MediaTable:
         """The kernels' argument over these tables, walking the majorant grid in `scratch`."""
-        return MediaTable(self.params, self.index, self.grid_data, self.maj_data, scratch)
+        return MediaTable(self.params, self.index, self.grid_data, self.brick_index, self.maj_data, scratch)
 
 
 def dda_scratch() -> np.ndarray:

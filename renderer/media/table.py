@@ -8,6 +8,7 @@ import numpy as np
 
 from renderer.kernels import inline_kernel
 from renderer.media.layout import (
+    I_GRID_BRICKS,
     I_GRID_DIMS,
     I_GRID_OFFSET,
     I_HAS_EMISSION,
@@ -97,3 +98,8 @@ def maj_offset(mt, m):
 @inline_kernel
 def maj_dim(mt, m, axis):
     return mt.index[m, I_MAJ_DIMS + axis]
+
+
+@inline_kernel
+def grid_bricks(mt, m, which):
+    return mt.index[m, I_GRID_BRICKS + which]
