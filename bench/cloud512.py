@@ -146,36 +146,42 @@ def _python(code: str, env: dict[str, str]) -> subprocess.Popen:
                             stderr=subprocess.STDOUT, text=True)
 
 
-def _tree_memory(pid: int) -> tuple[int, int]:
-    """(sum of RSS, sum of PSS) in bytes of process pid and its descendants."""
+def _tree_memory(pid: int) -> dict[str, tuple[int, int]]:
+    """{process label: (RSS, PSS) in bytes} of process pid ("main") and its descendants
+    (labelled by their command line, pid included)."""
     import psutil
 
     try:
         root = psutil.Process(pid)
         processes = [root] + root.children(recursive=True)
     except psutil.NoSuchProcess:
-        return 0, 0
-    rss = pss = 0
+        return {}
+    found = {}
     for p in processes:
         try:
             text = Path(f"/proc/{p.pid}/smaps_rollup").read_text()
-        except OSError:
+            label = "main" if p.pid == pid else f"{p.pid} {' '.join(p.cmdline())[-40:]}"
+        except (OSError, psutil.Error):
             continue
         fields = {line.split(":")[0]: int(line.split()[1]) * 1024 for line in text.splitlines()[1:]}
-        rss += fields.get("Rss", 0)
-        pss += fields.get("Pss", 0)
-    return rss, pss
+        found[label] = (fields.get("Rss", 0), fields.get("Pss", 0))
+    return found
 
 
 def measure(code: str, env: dict[str, str], out: Path) -> dict[str, float]:
-    """Run `code` in a fresh Python; seconds until `out` exists and peak tree memory."""
+    """Run `code` in a fresh Python; seconds until `out` exists and peak tree memory (with
+    each process's RSS and PSS at the tree's PSS peak, in "at_peak")."""
     out.unlink(missing_ok=True)
     start = time.perf_counter()
     process = _python(code, env)
     peak_rss = peak_pss = 0
+    at_peak: dict[str, tuple[int, int]] = {}
     first = None
     while process.poll() is None:
-        rss, pss = _tree_memory(process.pid)
+        tree = _tree_memory(process.pid)
+        rss, pss = sum(r for r, _ in tree.values()), sum(p for _, p in tree.values())
+        if pss > peak_pss:
+            at_peak = tree
         peak_rss, peak_pss = max(peak_rss, rss), max(peak_pss, pss)
         if first is None and out.exists():
             first = time.perf_counter() - start
@@ -185,7 +191,7 @@ def measure(code: str, env: dict[str, str], out: Path) -> dict[str, float]:
         raise RuntimeError(f"render failed ({process.returncode}):\n{log[-3000:]}")
     elapsed = time.perf_counter() - start
     return {"first_image": first or elapsed, "total": elapsed, "rss": peak_rss / 2**30,
-            "pss": peak_pss / 2**30, "log": log}
+            "pss": peak_pss / 2**30, "at_peak": at_peak, "log": log}
 
 
 def main(argv: list[str]) -> int:
@@ -220,6 +226,8 @@ def main(argv: list[str]) -> int:
             results[label] = r = measure(code, env, out)
             print(f"{label:18s} first image {r['first_image']:6.1f} s  peak tree RSS {r['rss']:.2f} GB, "
                   f"PSS {r['pss']:.2f} GB", flush=True)
+            for name, (rss, pss) in r["at_peak"].items():
+                print(f"    at the PSS peak: {name:48s} RSS {rss / 2**20:6.0f} MB, PSS {pss / 2**20:6.0f} MB")
             if engine == "HAZE":
                 for line in r["log"].splitlines():
                     if line.startswith("Haze:"):

@@ -6,6 +6,7 @@ it needs instead of with a MemoryError, or the system killing the process, partw
 from __future__ import annotations
 
 import os
+import sys
 
 from renderer.errors import SceneError
 from renderer.scene import Film
@@ -67,3 +68,21 @@ def check_render_memory(film: Film, workers: int, available: int | None = None) 
             f"a {size} render with {workers} worker(s) needs about {needed / 1e9:.1f} GB of memory; "
             f"this machine has {available / 1e9:.1f} GB available",
         )
+
+
+def release_free_memory() -> None:
+    """Hand the C heap's free pages back to the system (glibc only; elsewhere nothing).
+
+    A scene export frees 100s of MB of row-sized temporaries (a .vdb read slab by slab);
+    glibc keeps such freed heap pages mapped, so Blender's process would hold them for the
+    whole render (measured: 94 MB of the 512^3 cloud's export). malloc_trim returns them.
+    """
+    if not sys.platform.startswith("linux"):
+        return
+    import ctypes
+
+    try:
+        trim = ctypes.CDLL("libc.so.6").malloc_trim
+    except (OSError, AttributeError):  # musl and other C libraries have no malloc_trim
+        return
+    trim(0)

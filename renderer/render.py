@@ -45,6 +45,7 @@ import numpy as np
 from .compile import CompiledScene, compile_scene
 from .film import Film
 from .integrator.wavefront import Tracer
+from .memory import release_free_memory
 from .progress import (
     STOP_GRACE,
     Clock,
@@ -99,6 +100,7 @@ def render_progressive(scene: Scene, workers: int = 1, target_error: float = 0.0
     if validate:
         _validate(scene)
     cs = compile_scene(scene)
+    release_free_memory()  # the export's and compile's temporaries, before the render's peak
     settings = scene.integrator
     film = Film(cs.width, cs.height)
     units = iter_units(cs.width, cs.height, settings.spp)

@@ -127,6 +127,16 @@ def test_sparse_majorant_bounds_and_skips_empty_bricks():
     assert empty > 0.5  # most of this grid is empty space
 
 
+def test_compiled_media_share_the_sparse_grids_bricks():
+    """A built sparse grid is compiled without a copy: grid_data views its zero-led brick
+    array (a 512^3 cloud's bricks are 100s of MB), and that array's brick 0 is zero."""
+    grid = to_sparse(_blobby((20, 17, 30), 4))
+    assert not grid.zero_led()[0].any()
+    mt = compile_media([_medium(grid)])
+    assert np.shares_memory(mt.grid_data, grid.bricks)
+    assert np.array_equal(mt.grid_data, grid.zero_led().ravel())
+
+
 def test_a_bad_sparse_grid_is_refused_by_name():
     good = to_sparse(_blobby((9, 9, 9), 1))
     bad = SparseGrid(good.shape, good.index, -good.bricks)

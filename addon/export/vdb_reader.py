@@ -115,6 +115,8 @@ class VdbFile:
                 slab[:, y0:y1, x0:x1] = buffer.transpose(2, 1, 0)
                 slabs[attribute] = _cleaned(slab, clipping, counts[attribute])
             builder.add_row(bk, slabs)
+        grids.clear()  # the file's trees (as large as the bricks) go before finish() gathers them
+        grid = slabs = None  # the loop variable holds a tree too
         for attribute, (bad, negative) in counts.items():
             name = names[attribute]
             if bad:

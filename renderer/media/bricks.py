@@ -17,7 +17,7 @@ Apron voxels past the grid's last voxel repeat the edge voxel; lookups never rea
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.lib.stride_tricks import as_strided
@@ -43,6 +43,23 @@ class SparseGrid:
     shape: tuple[int, int, int]  # (nz, ny, nx) voxels, as a dense array's shape (channels aside)
     index: np.ndarray
     bricks: np.ndarray
+    # (B + 1, SPAN, SPAN, SPAN[, 3]): an all-zero brick, then `bricks` (which view it), or None.
+    # The renderer stores a sparse grid that way (empty bricks point at the zero brick), so a
+    # grid built in it is compiled without a copy: at 512^3 the bricks are 100s of MB.
+    zero_led_storage: np.ndarray | None = field(default=None, repr=False)
+
+    @classmethod
+    def from_zero_led(cls, shape: tuple[int, int, int], index: np.ndarray, storage: np.ndarray) -> SparseGrid:
+        """The grid whose bricks are storage[1:]; storage[0] must be all zero."""
+        return cls(shape, index, storage[1:], storage)
+
+    def zero_led(self) -> np.ndarray:
+        """(B + 1, SPAN, SPAN, SPAN[, 3]) float32: a zero brick, then the bricks (no copy when
+        the grid was built that way, as BrickBuilder and map build them)."""
+        if self.zero_led_storage is not None:
+            return self.zero_led_storage
+        zero = np.zeros((1,) + self.bricks.shape[1:], np.float32)
+        return np.concatenate([zero, np.asarray(self.bricks, np.float32)])
 
     @property
     def ndim(self) -> int:
@@ -91,7 +108,8 @@ class SparseGrid:
 
     def map(self, function) -> SparseGrid:
         """The grid with `function` applied to every stored voxel (function(0) must be 0)."""
-        return SparseGrid(self.shape, self.index, np.ascontiguousarray(function(self.bricks), np.float32))
+        mapped = np.ascontiguousarray(function(self.zero_led()), np.float32)  # function(0) = 0 keeps brick 0
+        return SparseGrid.from_zero_led(self.shape, self.index, mapped)
 
     def to_dense(self) -> np.ndarray:
         """The (nz, ny, nx[, 3]) array (for tests and small grids)."""
@@ -157,11 +175,19 @@ class BrickBuilder:
                 self.parts[name].append(np.ascontiguousarray(view[where], np.float32))
 
     def finish(self) -> dict[str, SparseGrid]:
+        """The grids, each in one zero-led array (SparseGrid.zero_led). Each row's bricks are
+        freed once copied in, so the peak is the grids plus one row, not twice the grids."""
         grids = {}
         for name, parts in self.parts.items():
             tail = () if self.channels[name] == 1 else (self.channels[name],)
-            bricks = np.concatenate(parts) if parts else np.zeros((0, SPAN, SPAN, SPAN) + tail, np.float32)
-            grids[name] = SparseGrid(self.shape, self.index, bricks)
+            storage = np.zeros((self.count + 1, SPAN, SPAN, SPAN) + tail, np.float32)
+            at = 1
+            while parts:
+                part = parts.pop(0)
+                storage[at:at + len(part)] = part
+                at += len(part)
+                del part
+            grids[name] = SparseGrid.from_zero_led(self.shape, self.index, storage)
         return grids
 
 

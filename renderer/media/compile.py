@@ -98,8 +98,7 @@ class _ArrayStore:
             grid = make()
             if isinstance(grid, SparseGrid):
                 lattice = self._lattice(grid.index)
-                zero = np.zeros((1,) + grid.bricks.shape[1:], np.float32)
-                flat = np.concatenate([zero.ravel(), np.ascontiguousarray(grid.bricks, np.float32).ravel()])
+                flat = np.ascontiguousarray(grid.zero_led(), np.float32).reshape(-1)  # a view if built so
                 shape = grid.shape
             else:
                 grid = np.ascontiguousarray(grid, dtype=np.float32)
@@ -131,6 +130,10 @@ class _ArrayStore:
         return self.maj_at[key]
 
     def grid_data(self) -> np.ndarray:
+        """Every grid in one array; a single grid is not copied (a large sparse grid is then
+        shared with the scene's SparseGrid, not held twice)."""
+        if len(self.grids) == 1:
+            return self.grids[0]
         data = np.concatenate(self.grids) if self.grids else np.zeros(1, np.float32)
         return np.ascontiguousarray(data, np.float32)
 
