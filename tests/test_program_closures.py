@@ -13,6 +13,11 @@ textured emission, Alpha and IOR.
 * Normal Map (tangent space, MikkTSpace tangents exported from Blender) on a Principled
   BSDF's Normal, on a plane turned about z and on a mirrored one.
 
+* Bump (issue 14 item 2): a Noise Texture height on a Principled BSDF's Normal, on a plane
+  under a sun; a second plane bumps after a Normal Map (Bump's Normal input). Cycles'
+  Filter Width is small (0.02) so its height offsets (a fraction of a pixel's footprint)
+  approach the exact gradient Haze takes (renderer.shading.bump).
+
 * A world program (issue 14 item 5): a gradient sky (Generated = the direction, through
   Math and a Color Ramp) lighting a diffuse ball on a floor, through the environment map
   Haze evaluates from the program.
@@ -124,6 +129,32 @@ def normal_mapped():
     return material
 
 
+def bumped(name, after_normal_map=False):
+    """Principled (single-scatter GGX) whose Normal is a Bump of a Noise height."""
+    material, tree, out = node_material(name)
+    n, link = tree.nodes.new, tree.links.new
+    bsdf = n("ShaderNodeBsdfPrincipled")
+    bsdf.distribution = "GGX"
+    bsdf.inputs["Base Color"].default_value = (0.55, 0.5, 0.45, 1)
+    bsdf.inputs["Roughness"].default_value = 0.4
+    noise = n("ShaderNodeTexNoise")
+    noise.inputs["Scale"].default_value = 3.0
+    noise.inputs["Detail"].default_value = 1.0
+    bump = n("ShaderNodeBump")
+    bump.inputs["Distance"].default_value = 0.25
+    bump.inputs["Filter Width"].default_value = 0.02
+    link(noise.outputs["Fac"], bump.inputs["Height"])
+    if after_normal_map:
+        normal_map = n("ShaderNodeNormalMap")
+        normal_map.inputs["Strength"].default_value = 0.6
+        tex = checker(tree, 2.0, (0.8, 0.5, 0.8), (0.3, 0.65, 0.9))
+        link(tex.outputs["Color"], normal_map.inputs["Color"])
+        link(normal_map.outputs["Normal"], bump.inputs["Normal"])
+    link(bump.outputs["Normal"], bsdf.inputs["Normal"])
+    link(bsdf.outputs["BSDF"], out.inputs["Surface"])
+    return material
+
+
 def render(scene, name):
     scene.render.resolution_x = scene.render.resolution_y = SIZE
     scene.render.resolution_percentage = 100
@@ -169,6 +200,16 @@ def normal_map_scene():
     return render(scene, "normal_map")
 
 
+def bump_scene():
+    scene = C.clear_scene()
+    H.world_color(scene, (0.4, 0.45, 0.5), 1.0)
+    uv_quad("Bumped", [(-2.1, -1, 0), (-0.1, -1, 0), (-0.1, 1, 0), (-2.1, 1, 0)], bumped("Bumped"))
+    uv_quad("Mapped", [(0.1, -1, 0), (2.1, -1, 0), (2.1, 1, 0), (0.1, 1, 0)], bumped("Mapped", True))
+    H.add_light("SUN", "Sun", (0.0, 0.0, 5.0), (50.0, 0.0, 60.0), energy=3.0, angle=math.radians(4.0))
+    C.add_camera(scene, (0.0, -3.0, 2.4), (51.0, 0.0, 0.0), lens=26.0)
+    return render(scene, "bump")
+
+
 def gradient_world(scene):
     """A sky: Generated (the direction) -> Z -> 0.5 z + 0.5 -> Color Ramp, warm at the horizon,
     blue at the zenith, dark below."""
@@ -210,6 +251,7 @@ def gradient_world_scene():
 def main():
     H.enable_dev_addon()
     return {{"emitter": emitter_scene(), "leaf": leaf_scene(), "normal_map": normal_map_scene(),
+             "bump": bump_scene(),
              "gradient_world": gradient_world_scene()}}
 '''
 
@@ -226,7 +268,7 @@ def _images(paths: list[str]) -> np.ndarray:
     return np.stack([read_exr(p) for p in paths])
 
 
-@pytest.mark.parametrize("scene", ["emitter", "leaf", "normal_map", "gradient_world"])
+@pytest.mark.parametrize("scene", ["emitter", "leaf", "normal_map", "bump", "gradient_world"])
 def test_program_driven_closures_agree_with_cycles(renders, scene):
     haze, cycles = _images(renders[scene]["haze"]), _images(renders[scene]["cycles"])
     assert haze.shape == cycles.shape == (RUNS, SIZE, SIZE, 3)

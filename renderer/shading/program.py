@@ -63,6 +63,10 @@ OPCODES = (
                    # detail, roughness, lacunarity, distortion; i0 normalize
     "normal_map",  # dst(3) = Normal Map of colour a, strength b, tangent c (3), bitangent sign d;
                    # i0 space (names.NORMAL_MAP_SPACES)
+    "bump_eval",   # attribute and position operations that follow read the point moved along
+                   # tangent i0 (0: the point itself; shading.bump); i1 the corner-position column
+    "bump",        # dst(3) = Bump of normal a; b..b+4 = height at the point, at offsets 1 and 2,
+                   # strength, distance; i0 invert, i1 the corner-position column
 )
 OP = {name: code for code, name in enumerate(OPCODES)}
 
