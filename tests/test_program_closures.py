@@ -19,8 +19,10 @@ textured emission, Alpha and IOR.
   approach the exact gradient Haze takes (renderer.shading.bump).
 
 * A world program (issue 14 item 5): a gradient sky (Generated = the direction, through
-  Math and a Color Ramp) lighting a diffuse ball on a floor, through the environment map
-  Haze evaluates from the program.
+  Math and a Color Ramp) mixed half and half with an HDRI (an Environment Texture of a
+  small linear EXR whose colour varies with azimuth and height) times a warm colour,
+  lighting a diffuse ball on a floor, through the environment map Haze evaluates from the
+  program.
 
 The scenes render in one Blender process (one kernel compile); Haze and Cycles agree within
 noise (bpy_helpers.assert_agree).
@@ -44,8 +46,10 @@ SCENE_BODY = rf'''
 import math
 import os
 import bpy
+import numpy as np
 import bpy_helpers as H
 import blender_cornell as C
+from renderer.imageio import write_exr
 
 SIZE = {SIZE}
 
@@ -238,9 +242,49 @@ def gradient_world(scene):
     scene.world = world
 
 
+def hdri_pixels(width=64, height=32):
+    """RGBA rows from the bottom: warm toward +x (u = 1/2), bluer and brighter upward."""
+    u = (np.arange(width) + 0.5) / width
+    v = (np.arange(height) + 0.5) / height
+    facing = 0.5 - 0.5 * np.cos(2 * math.pi * u)[None, :]
+    up = v[:, None]
+    rgba = np.ones((height, width, 4), np.float32)
+    rgba[..., 0] = 0.1 + 1.2 * facing * up
+    rgba[..., 1] = 0.1 + 0.5 * facing + 0.3 * up
+    rgba[..., 2] = 0.1 + 0.8 * up * up
+    return rgba
+
+
+def hdri_gradient_world(scene):
+    """gradient_world's ramp mixed half and half with HDRI x (1, 0.85, 0.6)."""
+    gradient_world(scene)
+    tree = scene.world.node_tree
+    n, link = tree.nodes.new, tree.links.new
+    path = os.path.join(os.getcwd(), "sky.exr")
+    write_exr(path, hdri_pixels()[::-1, :, :3])  # EXR scanlines run top-down
+    texture = n("ShaderNodeTexEnvironment")
+    texture.image = bpy.data.images.load(path)
+    texture.image.colorspace_settings.name = "Linear Rec.709"
+    def socket(sockets, identifier):  # Mix repeats its names per data type
+        return next(s for s in sockets if s.identifier == identifier)
+
+    tint = n("ShaderNodeMix")
+    tint.data_type, tint.blend_type = "RGBA", "MULTIPLY"
+    socket(tint.inputs, "Factor_Float").default_value = 1.0
+    link(texture.outputs["Color"], socket(tint.inputs, "A_Color"))
+    socket(tint.inputs, "B_Color").default_value = (1.0, 0.85, 0.6, 1.0)
+    mix = n("ShaderNodeMix")
+    mix.data_type = "RGBA"
+    socket(mix.inputs, "Factor_Float").default_value = 0.5
+    background = tree.nodes["Background"]
+    link(background.inputs["Color"].links[0].from_socket, socket(mix.inputs, "A_Color"))
+    link(socket(tint.outputs, "Result_Color"), socket(mix.inputs, "B_Color"))
+    link(socket(mix.outputs, "Result_Color"), background.inputs["Color"])
+
+
 def gradient_world_scene():
     scene = C.clear_scene()
-    gradient_world(scene)
+    hdri_gradient_world(scene)
     grey = C.diffuse_material("Grey", (0.7, 0.7, 0.7))
     H.uv_sphere("Ball", (0.0, 0.0, 0.8), 0.8, grey)
     H.new_object("Floor", [(-3, -3, 0), (3, -3, 0), (3, 3, 0), (-3, 3, 0)], [(0, 1, 2, 3)], grey)
