@@ -13,9 +13,16 @@ textured emission, Alpha and IOR.
 * Normal Map (tangent space, MikkTSpace tangents exported from Blender) on a Principled
   BSDF's Normal, on a plane turned about z and on a mirrored one.
 
+* Bump (issue 14 item 2): a Noise Texture height on a Principled BSDF's Normal, on a plane
+  under a sun; a second plane bumps after a Normal Map (Bump's Normal input). Cycles'
+  Filter Width is small (0.02) so its height offsets (a fraction of a pixel's footprint)
+  approach the exact gradient Haze takes (renderer.shading.bump).
+
 * A world program (issue 14 item 5): a gradient sky (Generated = the direction, through
-  Math and a Color Ramp) lighting a diffuse ball on a floor, through the environment map
-  Haze evaluates from the program.
+  Math and a Color Ramp) mixed half and half with an HDRI (an Environment Texture of a
+  small linear EXR whose colour varies with azimuth and height) times a warm colour,
+  lighting a diffuse ball on a floor, through the environment map Haze evaluates from the
+  program.
 
 The scenes render in one Blender process (one kernel compile); Haze and Cycles agree within
 noise (bpy_helpers.assert_agree).
@@ -39,8 +46,10 @@ SCENE_BODY = rf'''
 import math
 import os
 import bpy
+import numpy as np
 import bpy_helpers as H
 import blender_cornell as C
+from renderer.imageio import write_exr
 
 SIZE = {SIZE}
 
@@ -124,6 +133,32 @@ def normal_mapped():
     return material
 
 
+def bumped(name, after_normal_map=False):
+    """Principled (single-scatter GGX) whose Normal is a Bump of a Noise height."""
+    material, tree, out = node_material(name)
+    n, link = tree.nodes.new, tree.links.new
+    bsdf = n("ShaderNodeBsdfPrincipled")
+    bsdf.distribution = "GGX"
+    bsdf.inputs["Base Color"].default_value = (0.55, 0.5, 0.45, 1)
+    bsdf.inputs["Roughness"].default_value = 0.4
+    noise = n("ShaderNodeTexNoise")
+    noise.inputs["Scale"].default_value = 3.0
+    noise.inputs["Detail"].default_value = 1.0
+    bump = n("ShaderNodeBump")
+    bump.inputs["Distance"].default_value = 0.25
+    bump.inputs["Filter Width"].default_value = 0.02
+    link(noise.outputs["Fac"], bump.inputs["Height"])
+    if after_normal_map:
+        normal_map = n("ShaderNodeNormalMap")
+        normal_map.inputs["Strength"].default_value = 0.6
+        tex = checker(tree, 2.0, (0.8, 0.5, 0.8), (0.3, 0.65, 0.9))
+        link(tex.outputs["Color"], normal_map.inputs["Color"])
+        link(normal_map.outputs["Normal"], bump.inputs["Normal"])
+    link(bump.outputs["Normal"], bsdf.inputs["Normal"])
+    link(bsdf.outputs["BSDF"], out.inputs["Surface"])
+    return material
+
+
 def render(scene, name):
     scene.render.resolution_x = scene.render.resolution_y = SIZE
     scene.render.resolution_percentage = 100
@@ -169,6 +204,16 @@ def normal_map_scene():
     return render(scene, "normal_map")
 
 
+def bump_scene():
+    scene = C.clear_scene()
+    H.world_color(scene, (0.4, 0.45, 0.5), 1.0)
+    uv_quad("Bumped", [(-2.1, -1, 0), (-0.1, -1, 0), (-0.1, 1, 0), (-2.1, 1, 0)], bumped("Bumped"))
+    uv_quad("Mapped", [(0.1, -1, 0), (2.1, -1, 0), (2.1, 1, 0), (0.1, 1, 0)], bumped("Mapped", True))
+    H.add_light("SUN", "Sun", (0.0, 0.0, 5.0), (50.0, 0.0, 60.0), energy=3.0, angle=math.radians(4.0))
+    C.add_camera(scene, (0.0, -3.0, 2.4), (51.0, 0.0, 0.0), lens=26.0)
+    return render(scene, "bump")
+
+
 def gradient_world(scene):
     """A sky: Generated (the direction) -> Z -> 0.5 z + 0.5 -> Color Ramp, warm at the horizon,
     blue at the zenith, dark below."""
@@ -197,9 +242,49 @@ def gradient_world(scene):
     scene.world = world
 
 
+def hdri_pixels(width=64, height=32):
+    """RGBA rows from the bottom: warm toward +x (u = 1/2), bluer and brighter upward."""
+    u = (np.arange(width) + 0.5) / width
+    v = (np.arange(height) + 0.5) / height
+    facing = 0.5 - 0.5 * np.cos(2 * math.pi * u)[None, :]
+    up = v[:, None]
+    rgba = np.ones((height, width, 4), np.float32)
+    rgba[..., 0] = 0.1 + 1.2 * facing * up
+    rgba[..., 1] = 0.1 + 0.5 * facing + 0.3 * up
+    rgba[..., 2] = 0.1 + 0.8 * up * up
+    return rgba
+
+
+def hdri_gradient_world(scene):
+    """gradient_world's ramp mixed half and half with HDRI x (1, 0.85, 0.6)."""
+    gradient_world(scene)
+    tree = scene.world.node_tree
+    n, link = tree.nodes.new, tree.links.new
+    path = os.path.join(os.getcwd(), "sky.exr")
+    write_exr(path, hdri_pixels()[::-1, :, :3])  # EXR scanlines run top-down
+    texture = n("ShaderNodeTexEnvironment")
+    texture.image = bpy.data.images.load(path)
+    texture.image.colorspace_settings.name = "Linear Rec.709"
+    def socket(sockets, identifier):  # Mix repeats its names per data type
+        return next(s for s in sockets if s.identifier == identifier)
+
+    tint = n("ShaderNodeMix")
+    tint.data_type, tint.blend_type = "RGBA", "MULTIPLY"
+    socket(tint.inputs, "Factor_Float").default_value = 1.0
+    link(texture.outputs["Color"], socket(tint.inputs, "A_Color"))
+    socket(tint.inputs, "B_Color").default_value = (1.0, 0.85, 0.6, 1.0)
+    mix = n("ShaderNodeMix")
+    mix.data_type = "RGBA"
+    socket(mix.inputs, "Factor_Float").default_value = 0.5
+    background = tree.nodes["Background"]
+    link(background.inputs["Color"].links[0].from_socket, socket(mix.inputs, "A_Color"))
+    link(socket(tint.outputs, "Result_Color"), socket(mix.inputs, "B_Color"))
+    link(socket(mix.outputs, "Result_Color"), background.inputs["Color"])
+
+
 def gradient_world_scene():
     scene = C.clear_scene()
-    gradient_world(scene)
+    hdri_gradient_world(scene)
     grey = C.diffuse_material("Grey", (0.7, 0.7, 0.7))
     H.uv_sphere("Ball", (0.0, 0.0, 0.8), 0.8, grey)
     H.new_object("Floor", [(-3, -3, 0), (3, -3, 0), (3, 3, 0), (-3, 3, 0)], [(0, 1, 2, 3)], grey)
@@ -210,6 +295,7 @@ def gradient_world_scene():
 def main():
     H.enable_dev_addon()
     return {{"emitter": emitter_scene(), "leaf": leaf_scene(), "normal_map": normal_map_scene(),
+             "bump": bump_scene(),
              "gradient_world": gradient_world_scene()}}
 '''
 
@@ -236,7 +322,7 @@ NORMAL_MAP_GAP = pytest.mark.xfail(strict=True, reason="per-lobe bump shadowing 
 
 
 @pytest.mark.parametrize("scene", ["emitter", "leaf", pytest.param("normal_map", marks=NORMAL_MAP_GAP),
-                                   "gradient_world"])
+                                   "bump", "gradient_world"])
 def test_program_driven_closures_agree_with_cycles(renders, scene):
     haze, cycles = _images(renders[scene]["haze"]), _images(renders[scene]["cycles"])
     assert haze.shape == cycles.shape == (RUNS, SIZE, SIZE, 3)

@@ -228,6 +228,26 @@ def case_nodes(tree, name):
         color.inputs["Z"].default_value = 0.8
         link(color.outputs["Vector"], node.inputs["Color"])
         return node.outputs["Normal"]
+    if name.startswith("bump_"):
+        # A height linear over the plane: Cycles' finite differences over its bake
+        # differentials and Haze's fixed offsets (renderer.shading.bump) give the same slope.
+        node = n("ShaderNodeBump")
+        node.invert = name == "bump_invert"
+        node.inputs["Strength"].default_value = 0.6 if name == "bump_invert" else 1.0
+        node.inputs["Distance"].default_value = 0.7
+        height = n("ShaderNodeMath")
+        height.operation = "MULTIPLY_ADD"
+        sep = n("ShaderNodeSeparateXYZ")
+        link(texture_vector(tree, "UV"), sep.inputs["Vector"])
+        link(sep.outputs["X"], height.inputs[0])
+        height.inputs[1].default_value = 1.5
+        link(sep.outputs["Y"], height.inputs[2])
+        link(height.outputs["Value"], node.inputs["Height"])
+        if name == "bump_after_normal_map":
+            normal_map = n("ShaderNodeNormalMap")
+            normal_map.inputs["Color"].default_value = (0.6, 0.4, 0.9, 1.0)
+            link(normal_map.outputs["Normal"], node.inputs["Normal"])
+        return node.outputs["Normal"]
     raise ValueError(name)
 
 
@@ -331,6 +351,7 @@ CASES = (
     + ["hsv", "separate_hsv", "combine_hsv", "fresnel", "layer_fresnel", "layer_facing", "attribute",
        "color_attribute"]
     + [f"normal_map_{k}" for k in ("tangent", "tangent_strong", "world", "blender_world")]
+    + ["bump_linear", "bump_invert", "bump_after_normal_map"]
     + [f"mapping_{k}" for k in ("point", "texture", "vector", "normal")]
     + [f"gradient_{k}" for k in ("linear", "quadratic", "easing", "diagonal", "radial", "quadratic_sphere",
                                  "spherical")]

@@ -50,6 +50,7 @@ class ShaderGraph:
         # Whether inputs may compile to programs (material surfaces; worlds and volumes not yet).
         self.programs = images is not None
         self.compiled = COMPILED  # node handlers by type (a world's see directions: world_program)
+        self.sources = VARYING  # node types that vary by themselves (a world's add its own)
         self._varying: dict[tuple, bool] = {}
         self._registers: dict[tuple, Reg | None] = {}
 
@@ -152,7 +153,7 @@ class ShaderGraph:
     def _find_varying(self, node, scope: tuple) -> bool:
         if node.mute or node.bl_idname not in self.compiled and node.bl_idname != "NodeReroute":
             return False
-        if node.bl_idname in VARYING:
+        if node.bl_idname in self.sources:
             return True
         for socket in node.inputs:
             source = self.link_source(socket)

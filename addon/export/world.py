@@ -22,7 +22,7 @@ from .messages import Messages
 from .node_closures import as_volume_terms, rgb
 from .nodes import ShaderGraph
 from .world_map import environment_map
-from .world_program import WORLD_HANDLERS, world_program_map
+from .world_program import WORLD_HANDLERS, WORLD_SOURCES, world_program_map
 
 
 def world_subject(name: str) -> str:
@@ -49,6 +49,7 @@ def world_environment(world, messages: Messages) -> tuple[Environment, Medium | 
     # A program graph of its own: the one above has folded (and cached) values without one.
     program_graph = ShaderGraph(world_subject(world.name), messages, ImageLibrary(messages))
     program_graph.compiled = {**program_graph.compiled, **WORLD_HANDLERS}
+    program_graph.sources = program_graph.sources | WORLD_SOURCES
     mapped = world_program_map(program_graph, output.inputs["Surface"])
     if mapped is not None:
         return mapped, medium

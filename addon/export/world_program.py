@@ -5,6 +5,10 @@ equirectangular grid into an environment map (renderer.lights.environment), whic
 the scene by importance sampling and MIS as an HDRI does, and which escaped rays read with
 bilinear interpolation (not the program itself: between pixel centres the map interpolates).
 
+Environment Textures (equirectangular) inside such a program are image lookups at the
+direction's equirectangular coordinates (Cycles' direction_to_equirectangular), so an HDRI
+times a colour, a Mix of an HDRI and a gradient, or of two HDRIs, become one map.
+
 As Cycles sets up the background's shading point (geom/shader_data.h,
 shader_setup_from_background), the position is the ray direction D and the normal -D:
 Texture Coordinate Generated and Object give D, Normal -D; Geometry Position D, Normal -D.
@@ -15,10 +19,11 @@ from __future__ import annotations
 import numpy as np
 
 from renderer.scene import CornerAttribute, Environment, Lobe, Material, Mesh
-from renderer.shading.names import VECTOR_OPS
+from renderer.shading.names import MATH_OPS, VECTOR_OPS
 
 from .node_values import FRONT
 from .nodes import ShaderGraph
+from .program_builder import Reg
 from .world_map import follow
 
 MAP_WIDTH, MAP_HEIGHT = 1024, 512  # 0.35 degrees per pixel
@@ -41,7 +46,41 @@ def world_geometry(graph, node, output, scope):
     return None
 
 
-WORLD_HANDLERS = {"ShaderNodeTexCoord": world_tex_coord, "ShaderNodeNewGeometry": world_geometry}
+def world_environment_texture(graph, node, output, scope):
+    """Environment Texture (equirectangular): the image at u = 1/2 - atan2(y, x) / 2 pi,
+    v = 1 - acos(z) / pi of the normalised vector (the direction when unlinked), with
+    Cycles' Repeat extension."""
+    p = graph.program
+    alpha = output.identifier == "Alpha"
+    if node.image is None:
+        graph.warn_node(node, "has no image; rendered as Cycles' magenta")
+        return p.const(1.0 if alpha else (1.0, 0.0, 1.0))
+    if node.projection != "EQUIRECTANGULAR":
+        graph.warn_node(node, "Mirror Ball projection is not supported inside a world program")
+        return None
+    if node.interpolation not in ("Closest", "Linear"):
+        graph.warn_node(node, f"{node.interpolation} interpolation is rendered as Linear")
+    name = graph.add_image(node.image)
+    if name is None:
+        return None
+    socket = node.inputs["Vector"]
+    d = graph.operand(socket, scope) if graph.link_source(socket) is not None else p.emit("position", 3)
+    zero = p.const(0.0)
+    d = p.emit("vector_math", 3, d, zero, zero, p.const(1.0), i0=VECTOR_OPS.index("NORMALIZE"))
+    x, y, z = (p.component(d, k) for k in range(3))
+    math = {op: MATH_OPS.index(op) for op in ("ARCTAN2", "ARCCOSINE", "MULTIPLY_ADD")}
+    phi = p.emit("math", 1, y, x, zero, i0=math["ARCTAN2"])
+    u = p.emit("math", 1, phi, p.const(-0.5 / np.pi), p.const(0.5), i0=math["MULTIPLY_ADD"])
+    theta = p.emit("math", 1, z, zero, zero, i0=math["ARCCOSINE"])
+    v = p.emit("math", 1, theta, p.const(-1.0 / np.pi), p.const(1.0), i0=math["MULTIPLY_ADD"])
+    uv = p.emit("combine", 3, u, v, zero)
+    out = p.emit("image", 4, uv, i0=p.image(name), i1=int(node.interpolation != "Closest"), i2=0)
+    return Reg(out.index + 3, 1) if alpha else Reg(out.index, 3)
+
+
+WORLD_HANDLERS = {"ShaderNodeTexCoord": world_tex_coord, "ShaderNodeNewGeometry": world_geometry,
+                  "ShaderNodeTexEnvironment": world_environment_texture}
+WORLD_SOURCES = {"ShaderNodeTexEnvironment"}  # vary with direction by themselves
 
 
 def grid_directions(width: int, height: int) -> np.ndarray:

@@ -13,6 +13,7 @@ import math
 
 from renderer.kernels import inline_kernel
 
+from .bump import bump_normal, bump_point
 from .color import fresnel, hsl_to_rgb, hsv_to_rgb, hue_saturation_value, layer_weight, rgb_to_hsl, rgb_to_hsv
 from .fractal import noise_texture
 from .image import image_lookup
@@ -33,7 +34,7 @@ COMBINE, COPY, INVERT, RGB_TO_BW = OP["combine"], OP["copy"], OP["invert"], OP["
 CLAMP, GRADIENT, GAMMA, BRIGHT_CONTRAST = OP["clamp"], OP["gradient"], OP["gamma"], OP["bright_contrast"]
 MAP_RANGE, NOISE, HSV, HSV_CONVERT = OP["map_range"], OP["noise"], OP["hsv"], OP["hsv_convert"]
 FRESNEL, LAYER_WEIGHT = OP["fresnel"], OP["layer_weight"]
-NORMAL_MAP = OP["normal_map"]
+NORMAL_MAP, BUMP_EVAL, BUMP = OP["normal_map"], OP["bump_eval"], OP["bump"]
 NOISE_ND, WHITE_NOISE, VORONOI = OP["noise_nd"], OP["white_noise"], OP["voronoi"]
 WAVE, MAGIC, BRICK = OP["wave"], OP["magic"], OP["brick"]
 
@@ -69,14 +70,16 @@ def run_program(st, m, regs, p, b0, b1, b2, x, n, wi, back):  # noqa: C901 - the
     r0 = progs[m, P_INIT]
     for k in range(progs[m, P_NREGS]):
         regs[k] = init[r0 + k]
+    # the point attribute and position operations read (Bump moves it)
+    q0, q1, q2, qx = float(b0), float(b1), float(b2), (float(x[0]), float(x[1]), float(x[2]))
     c0 = progs[m, P_CODE]
     for j in range(c0, c0 + progs[m, P_NCODE]):
         ins = code[j]
         op, dst, a, b, c = ins[I_OP], ins[I_DST], ins[I_A], ins[I_B], ins[I_C]
         if op == ATTRIBUTE:
-            _put3(regs, dst, _attribute(corner, p, b0, b1, b2, ins[I_P0], ins[I_P1]))
+            _put3(regs, dst, _attribute(corner, p, q0, q1, q2, ins[I_P0], ins[I_P1]))
         elif op == POSITION:
-            _put3(regs, dst, x)
+            _put3(regs, dst, qx)
         elif op == NORMAL:
             _put3(regs, dst, n)
         elif op == MATH:
@@ -203,6 +206,12 @@ def run_program(st, m, regs, p, b0, b1, b2, x, n, wi, back):  # noqa: C901 - the
         elif op == BRICK:
             _brick(regs, dst, _v(regs, a), b, _v(regs, c), _v(regs, ins[I_D]), _v(regs, ins[I_E]), ins[I_P0],
                    ins[I_P1])
+        elif op == BUMP_EVAL:
+            q0, q1, q2, qx = bump_point(corner, p, ins[I_P1], b0, b1, b2, x, n, ins[I_P0])
+        elif op == BUMP:
+            _put3(regs, dst, bump_normal(corner, p, ins[I_P1], x, n, _v(regs, a), float(regs[b]),
+                                         float(regs[b + 1]), float(regs[b + 2]), float(regs[b + 3]),
+                                         float(regs[b + 4]), ins[I_P0] != 0))
         elif op == MAP_RANGE:
             regs[dst] = _map_range(float(regs[a]), float(regs[b]), float(regs[b + 1]), float(regs[b + 2]),
                                    float(regs[b + 3]), float(regs[b + 4]), ins[I_P0], ins[I_P1] != 0)

@@ -76,6 +76,10 @@ OPCODES = (
     "brick",       # dst(3) colour, dst+3 factor: Brick of vector a; b..b+7 = scale, mortar size, mortar
                    # smooth, bias, brick width, row height, offset, squash; colours c, d, mortar e;
                    # i0 offset frequency, i1 squash frequency
+    "bump_eval",   # attribute and position operations that follow read the point moved along
+                   # tangent i0 (0: the point itself; shading.bump); i1 the corner-position column
+    "bump",        # dst(3) = Bump of normal a; b..b+4 = height at the point, at offsets 1 and 2,
+                   # strength, distance; i0 invert, i1 the corner-position column
 )
 OP = {name: code for code, name in enumerate(OPCODES)}
 

@@ -22,6 +22,7 @@ import numpy as np
 from renderer.errors import SceneError
 from renderer.layout import Layout
 
+from .bump import CORNER_POSITION
 from .program import BIND, BIND_FIELDS, I_P0, I_P1, INSTR, OP
 
 PROG = Layout("prog", [("code", 1), ("ncode", 1), ("init", 1), ("nregs", 1), ("bind", 1), ("nbind", 1)])
@@ -69,6 +70,8 @@ def build_shading_tables(materials, meshes, images, triangles: int) -> ShadingTa
                 if name not in image_index:
                     raise SceneError(f"materials[{k}].program", f"reads image {name!r}, not in the scene")
                 row[I_P0] = image_index[name]
+            elif row[0] in (OP["bump_eval"], OP["bump"]):
+                row[I_P1] = columns[prog.attributes[row[I_P1]]]
             elif row[0] in (OP["ramp"], OP["curve"]):
                 row[I_P0] += counts[2]
         progs[k] = (counts[0], len(c), counts[1], len(prog.registers), counts[3], len(prog.bindings))
@@ -82,6 +85,10 @@ def build_shading_tables(materials, meshes, images, triangles: int) -> ShadingTa
     start = 0
     for mesh in meshes:
         count = np.asarray(mesh.indices).reshape(-1, 3).shape[0]
+        if CORNER_POSITION in columns:  # the triangles' world-space corners (Bump's tangent frame)
+            triangles_xyz = np.asarray(mesh.vertices, np.float32)[np.asarray(mesh.indices).reshape(-1, 3)]
+            col = columns[CORNER_POSITION]
+            corner[start:start + count, :, col:col + 3] = triangles_xyz
         for attribute in mesh.attributes:
             if attribute.name in columns:
                 values = np.asarray(attribute.values, np.float32).reshape(count, 3, -1)
