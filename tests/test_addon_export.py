@@ -93,14 +93,14 @@ def build_materials():
     link(tree, diffuse.outputs[0], mix.inputs[1]); link(tree, emission.outputs[0], mix.inputs[2])
     link(tree, mix.outputs[0], out.inputs["Surface"])
     m["folded"] = material
-    # A texture Haze does not compile (Brick) feeding two inputs: one warning, both inputs
+    # A texture Haze does not compile (Gabor) feeding two inputs: one warning, both inputs
     # keep their own values.
     material = H.principled_material("Textured", Base_Color=(0.1, 0.6, 0.3), Roughness=0.7)
     tree = material.node_tree
-    texture = tree.nodes.new("ShaderNodeTexBrick"); texture.name = "Rust Texture"
+    texture = tree.nodes.new("ShaderNodeTexGabor"); texture.name = "Rust Texture"
     bsdf = tree.nodes["Principled BSDF"]
-    link(tree, texture.outputs["Color"], bsdf.inputs["Base Color"])
-    link(tree, texture.outputs["Fac"], bsdf.inputs["Roughness"])
+    link(tree, texture.outputs["Value"], bsdf.inputs["Base Color"])
+    link(tree, texture.outputs["Intensity"], bsdf.inputs["Roughness"])
     m["textured"] = material
     # A Checker as Mix Shader factor between a diffuse and an emission (the program weighs
     # both per point), and a Noise-mixed volume (homogeneous: folded).
@@ -541,7 +541,7 @@ def test_value_math_and_mix_nodes_are_folded(exported):
 
 def test_unsupported_node_warns_once_and_uses_socket_values(exported):
     warnings = [w for w in exported["main"]["warnings"] if "Rust Texture" in w]
-    assert warnings == ["Material 'Textured', node 'Rust Texture': Brick Texture nodes are not supported "
+    assert warnings == ["Material 'Textured', node 'Rust Texture': Gabor Texture nodes are not supported "
                         "by Haze; the inputs it feeds use their own values"]
     plastic = lobes_by_kind(material(exported["main_scene"], "Textured"))["plastic"]
     assert plastic.color == pytest.approx((0.1, 0.6, 0.3)) and plastic.roughness == pytest.approx(0.7)
