@@ -141,9 +141,9 @@ def main():
     scene = cornell(2)
     wall = bpy.data.objects["Back"].active_material  # a fresh copy: "Back Wall.00N"
     tree = wall.node_tree
-    texture = tree.nodes.new("ShaderNodeTexWave")  # a texture Haze does not compile yet
+    texture = tree.nodes.new("ShaderNodeTexGabor")  # a texture Haze does not compile yet
     texture.name = "Stucco"
-    tree.links.new(texture.outputs["Color"], tree.nodes["Diffuse BSDF"].inputs["Color"])
+    tree.links.new(texture.outputs["Value"], tree.nodes["Diffuse BSDF"].inputs["Color"])
     fog = bpy.data.objects["Fog"]
     results["names"] = {"wall": wall.name, "fog": fog.active_material.name}
     import bmesh
@@ -220,7 +220,7 @@ def test_unsupported_node_open_volume_and_flat_light_warn_but_render(renders):
     assert record["error"] == "" and errors(record) == []
     texts = warnings(record)
     names = renders["names"]
-    assert f"Material '{names['wall']}', node 'Stucco': Wave Texture nodes are not supported by Haze; " \
+    assert f"Material '{names['wall']}', node 'Stucco': Gabor Texture nodes are not supported by Haze; " \
            "the inputs it feeds use their own values" in texts
     open_fog = f"Object 'Fog': encloses the volume '{names['fog']} (volume)' but is not closed"
     assert any(t.startswith(open_fog) for t in texts)
