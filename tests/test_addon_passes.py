@@ -16,7 +16,8 @@ denoising_passes.h, see renderer/integrator/aovs.py):
   Albedo are means over the samples: exact where every sample sees the same surface
   (diffuse interiors, the sky: to float precision); elsewhere 8x8 block means agree within
   the noise of the RUNS independent renders (Welch t-tests, tests/block_stats.py), tested
-  apart over the glass ball. At the fog cube's outline Cycles scatters more than the cube's
+  apart over the glass ball (where it does not also see the fog cube's outline). At the
+  fog cube's outline Cycles scatters more than the cube's
   optical depth allows; there Haze's Normal is compared with the exact transmittance
   instead (tests/pass_stage.py).
 """
@@ -219,21 +220,24 @@ def test_mean_passes_agree_with_cycles_within_noise(renders, name):
                           f"{test.difference:.4f}, t {test.t:.1f} (dof {test.dof:.0f}) of {len(tests)}")
 
 
-GLASS_DIFFERS = pytest.mark.xfail(strict=True, reason=(
-    "over the clear glass ball Haze's block means differ from Cycles' beyond noise (measured, "
-    "8 runs of 32 spp: Normal by 0.023 at t 6.8, Denoising Albedo up to 0.027 at t 19; "
-    "Denoising Normal by 0.019 at t 4.3, just inside its threshold), in the ball's upper "
-    "half and rim; not explained yet (suspects: "
-    "the reflect/refract choice at grazing angles with smooth-shaded normals, which Cycles "
-    "corrects, and Fresnel in Cycles' bsdf_albedo)"))
+GLASS_ALBEDO_DIFFERS = pytest.mark.xfail(strict=True, reason=(
+    "over the clear glass ball's top outline Haze's Denoising Albedo is brighter than Cycles' "
+    "(measured, 8 runs of 32 spp: block (1, 3) by 0.019, t 21; per pixel up to 0.07 in every "
+    "channel where a pixel covers both the wall and the ball's rim: Cycles' values there lie "
+    "below both the wall's and the glass's, as if some samples ended with a zero albedo); "
+    "not explained yet: raising the "
+    "glass normal as Cycles' ensure_valid_specular_reflection, rejecting sampled directions "
+    "on the wrong side of the geometric normal, and ending features past the bounce limit "
+    "each left it unchanged"))
 
 
 @pytest.mark.parametrize("name", [
-    pytest.param(n, marks=GLASS_DIFFERS) if n in ("Normal", "Denoising Albedo") else n for n in MEAN_PASSES])
+    pytest.param(n, marks=GLASS_ALBEDO_DIFFERS) if n == "Denoising Albedo" else n for n in MEAN_PASSES])
 def test_mean_passes_through_glass_agree_with_cycles(renders, name):
-    """The same block t-tests over the pixels that see the clear glass ball."""
+    """The same block t-tests over the pixels that see the clear glass ball, except where
+    they also see the fog cube's outline (Cycles' excess scattering there, tested below)."""
     haze, cycles = stack(renders["haze"], name), stack(renders["cycles"], name)
-    tests = block_tests(haze, cycles, glass_region(SIZE))
+    tests = block_tests(haze, cycles, glass_region(SIZE) & ~fog_silhouette(SIZE))
     test, ratio = worst(tests)
     assert ratio <= 1.0, (f"{name}: block {test.block} channel {test.channel} differs by "
                           f"{test.difference:.4f}, t {test.t:.1f} (dof {test.dof:.0f}) of {len(tests)}")

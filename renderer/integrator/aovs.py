@@ -207,6 +207,15 @@ def aov_background(L, pid):
 
 
 @kernel
+def aov_past_limit(L, pid):
+    """A surface hit past the bounce limit (depth > max_bounces, which the path does not
+    shade): Cycles evaluates no closures there (surface_shader_eval with PATH_RAY_TERMINATE),
+    so open denoising features end with a zero normal and albedo. (Data passes are written
+    at depth 0, which is never past the limit.)"""
+    L[pid, AOV_FEAT_DONE] = 1.0
+
+
+@kernel
 def mist_amount(cam, mist, x):
     """Cycles' mist at point x: saturate((distance - start) / depth) ^ falloff, the distance
     from the camera (along its view axis for an orthographic camera: camera_distance)."""

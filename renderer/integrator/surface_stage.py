@@ -40,6 +40,7 @@ from .aovs import (
     aov_colors,
     aov_emission,
     aov_emission_pass,
+    aov_past_limit,
     aov_scattered_emission,
     aov_surface,
     shadow_pass_column,
@@ -184,7 +185,10 @@ def shade_surface(n, ps, prim, bu, bv, geo, mt, override, program_out, lt, env_l
         if bumped:  # a program's normal (Normal Map into a BSDF's Normal)
             sn = (float(program_out[i, 3]), float(program_out[i, 4]), float(program_out[i, 5]))
         if aov_open:
-            aov_surface(L, pid, mt, m, front, x, sn if front else neg(sn), depth, beta, cam, mist)
+            if depth > max_bounces:
+                aov_past_limit(L, pid)
+            else:
+                aov_surface(L, pid, mt, m, front, x, sn if front else neg(sn), depth, beta, cam, mist)
         if light_aovs and depth == 0:
             aov_colors(L, pid, mt, m, front, abs(dot(d, sn)), beta)
         if depth > max_bounces:
