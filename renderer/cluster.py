@@ -25,22 +25,6 @@ WORKER_WAIT = 30.0  # seconds a render waits for a scheduler without workers to 
 
 _clients: dict[tuple[str, int], Client] = {}
 
-# A LocalCluster's workers run this at start (a Dask preload given as source text: it needs
-# no Haze import), also those started again after one is lost. Not inherited from this
-# process instead (SIGINT ignored here while the cluster starts, as before): that dropped a
-# Ctrl-C pressed during those seconds; and the workers are spawned by the cluster's own
-# threads, so a signal mask blocked here does not reach them. A Ctrl-C while a worker still
-# imports may end that worker with a traceback; the render stops here all the same.
-IGNORE_SIGINT = """
-import signal
-import threading
-
-
-def dask_setup(worker):
-    if threading.current_thread() is threading.main_thread():
-        signal.signal(signal.SIGINT, signal.SIG_IGN)
-"""
-
 
 class ClusterError(RuntimeError):
     """The cluster cannot be used (unreachable, no workers); the message says which and why."""
@@ -62,12 +46,15 @@ def connect(address: str, workers: int = 1, timeout: float = CONNECT_TIMEOUT) ->
 def _start_local(workers: int, timeout: float) -> Client:
     from distributed import Client, LocalCluster
 
-    # No dashboard (it needs bokeh); the scheduler's small HTTP server takes any free port.
-    # Worker processes ignore SIGINT from their start-up on (IGNORE_SIGINT), so a Ctrl-C sent
-    # to the process group reaches this process only, which cancels the cluster's work.
-    cluster = LocalCluster(n_workers=max(1, workers), threads_per_worker=1, processes=True,
-                           dashboard_address=None, scheduler_kwargs={"dashboard_address": ":0"},
-                           silence_logs=logging.ERROR, preload=[IGNORE_SIGINT])
+    from .workers import _sigint_ignored
+
+    # Worker processes start with SIGINT ignored (inherited through spawn): a Ctrl-C sent to
+    # the process group must reach this process only, which cancels the cluster's work.
+    with _sigint_ignored():
+        # No dashboard (it needs bokeh); the scheduler's small HTTP server takes any free port.
+        cluster = LocalCluster(n_workers=max(1, workers), threads_per_worker=1, processes=True,
+                               dashboard_address=None, scheduler_kwargs={"dashboard_address": ":0"},
+                               silence_logs=logging.ERROR)
     return Client(cluster, timeout=timeout)
 
 

@@ -28,6 +28,7 @@ import pickle
 import signal
 import struct
 import tempfile
+import threading
 import time
 import traceback
 from collections.abc import Iterator
@@ -143,9 +144,8 @@ def _remove_leftovers() -> None:
 def _worker_main(conn: Connection) -> None:
     """A worker: trace the units it is sent, keeping the tracer of the last scene."""
     # Ctrl-C reaches the whole process group; the parent decides what stops, and a worker
-    # interrupted mid-unit would only print a traceback. SIGINT arrives blocked (see
-    # _sigint_blocked): ignored first, then unblocked, so one sent meanwhile is dropped here.
-    _ignore_sigint()
+    # interrupted mid-unit would only print a traceback.
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     from .units import trace_unit  # the renderer and numba load now, before the first task
 
     key, tracer = None, None
@@ -190,29 +190,20 @@ def _picklable(error: Exception) -> Exception:
         return RuntimeError(f"{type(error).__name__}: {error}")
 
 
-def _ignore_sigint() -> None:
-    """Ignore SIGINT in this (worker) process, then unblock it (inherited blocked)."""
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    if hasattr(signal, "pthread_sigmask"):  # POSIX only: on Windows it just ignores, as before
-        signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
-
-
 @contextmanager
-def _sigint_blocked() -> Iterator[None]:
-    """SIGINT blocked in this thread while it starts a worker: the new process inherits the
-    mask through fork and exec, so a Ctrl-C sent to the process group while it is still
-    importing stays pending there until _worker_main ignores it (no traceback; the parent
-    decides what stops). Here a Ctrl-C that arrives meanwhile is delivered once the block
-    ends, not lost: ignoring SIGINT for the spawn instead (as before) dropped it, and a
-    render could run on after its Ctrl-C (seen once in test_ctrl_c_stops_a_render_inside_a_kernel)."""
-    if not hasattr(signal, "pthread_sigmask"):
+def _sigint_ignored() -> Iterator[None]:
+    """SIGINT ignored while a worker starts: the new process inherits that (Python keeps an
+    ignored SIGINT), so a Ctrl-C sent to the process group while it is still importing
+    cannot interrupt it with a traceback; the parent decides what stops. Only the main
+    thread may set handlers (F12 in Blender's UI renders on another thread; no Ctrl-C there)."""
+    if threading.current_thread() is not threading.main_thread():
         yield
         return
-    previous = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
     try:
         yield
     finally:
-        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
+        signal.signal(signal.SIGINT, previous)
 
 
 class Worker:
@@ -220,14 +211,12 @@ class Worker:
         ctx = multiprocessing.get_context("spawn")  # Blender cannot fork; spawn everywhere alike
         self.conn, child = ctx.Pipe()
         self.process = ctx.Process(target=_worker_main, args=(child,), daemon=True, name="haze-worker")
+        with _sigint_ignored():
+            self.process.start()
+        child.close()
         self.unit: Unit | None = None  # the unit in flight
         self.compiling = False
         self.scene_key = ""  # the shipment it was last sent (warm-up or unit)
-        try:
-            with _sigint_blocked():  # a Ctrl-C pending meanwhile raises here, as the block ends
-                self.process.start()
-        finally:
-            child.close()  # the process ends once this Worker (and its pipe) is gone
 
     def send(self, shipment: Shipment, unit: Unit, seed: int) -> None:
         self.unit, self.scene_key = unit, shipment.key

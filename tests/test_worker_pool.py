@@ -304,42 +304,6 @@ def test_a_lone_dense_voxel_stops_at_the_time_limit():
         assert "time limit" in last.note
 
 
-def test_a_ctrl_c_while_a_worker_starts_is_not_lost_and_the_worker_ignores_it(monkeypatch):
-    """SIGINT is held back (blocked) while a worker starts, not ignored: one that arrives
-    meanwhile interrupts this process afterwards (ignoring dropped it, and a render once ran
-    on after its Ctrl-C); the worker inherits the block and ignores SIGINT before unblocking."""
-    from multiprocessing.process import BaseProcess
-
-    from renderer import workers
-
-    started = []
-    real_start = BaseProcess.start
-
-    def start_then_ctrl_c(process) -> None:
-        real_start(process)
-        started.append(process)
-        os.kill(process.pid, signal.SIGINT)  # the worker, still starting
-        os.kill(os.getpid(), signal.SIGINT)  # this process, inside the start
-
-    monkeypatch.setattr(BaseProcess, "start", start_then_ctrl_c)
-    try:
-        with pytest.raises(KeyboardInterrupt):
-            workers.Worker()
-        monkeypatch.undo()
-        worker = workers.Worker()
-        started.append(worker.process)
-        os.kill(worker.process.pid, signal.SIGINT)  # while it imports the renderer
-        worker.conn.send(None)  # stop once started: exit code 0, not 1 (KeyboardInterrupt) or -2
-        worker.process.join(timeout=300)
-        assert worker.process.exitcode == 0
-        assert started[0].exitcode in (None, 0)  # the first one got its SIGINT as early, and ignored it too
-    finally:
-        for process in started:
-            if process.is_alive():
-                process.terminate()
-            process.join(timeout=10)
-
-
 @pytest.mark.slow
 def test_ctrl_c_stops_a_render_inside_a_kernel():
     scene = lone_dense_voxel()
