@@ -94,6 +94,13 @@ def kernel(func) -> Kernel:
     return _make(Kernel, func)
 
 
+def helper_kernel(func) -> InlineDispatcher:
+    """A large helper that several kernels call (the shader interpreter): compiled and
+    optimised once, then called, without Python's wrappers. Forced inlining would optimise
+    its whole body again inside every caller."""
+    return _make(InlineDispatcher, func, no_cpython_wrapper=True, no_cfunc_wrapper=True)
+
+
 def inline_kernel(func) -> InlineDispatcher:
     """Compiled once per argument types, inlined by LLVM at every call (see above)."""
     return _make(InlineDispatcher, func, forceinline=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)

@@ -12,12 +12,15 @@ from .interpreter import run_program
 
 @kernel
 def _evaluate(st, m, tri, bary, x, n, regs, first, width, out):
+    # The signature the render stages call it with (stage.apply_program), so that the
+    # interpreter compiles once: int64 indices, a bool variable (not a literal) for back.
+    back = tri.shape[0] < 0
     for k in range(tri.shape[0]):
         pos = (float(x[k, 0]), float(x[k, 1]), float(x[k, 2]))
         nrm = (float(n[k, 0]), float(n[k, 1]), float(n[k, 2]))
         # As in Cycles' baking, the view direction is the normal (front face).
-        run_program(st, m, regs, tri[k], float(bary[k, 0]), float(bary[k, 1]), float(bary[k, 2]), pos, nrm,
-                    nrm, False)
+        b0, b1, b2 = float(bary[k, 0]), float(bary[k, 1]), float(bary[k, 2])
+        run_program(st, m, regs, np.int64(tri[k]), b0, b1, b2, pos, nrm, nrm, back)
         for c in range(width):
             out[k, c] = regs[first + c]
 

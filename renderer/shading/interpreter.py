@@ -11,7 +11,7 @@ corner attributes are interpolated with the barycentrics Embree returns
 
 import math
 
-from renderer.kernels import inline_kernel
+from renderer.kernels import helper_kernel, inline_kernel
 
 from .bump import bump_normal, bump_point
 from .color import fresnel, hsl_to_rgb, hsv_to_rgb, hue_saturation_value, layer_weight, rgb_to_hsl, rgb_to_hsv
@@ -64,7 +64,7 @@ def _attribute(corner, p, b0, b1, b2, column, width):
     return (out0, out1, out2)
 
 
-@inline_kernel
+@helper_kernel
 def run_program(st, m, regs, p, b0, b1, b2, x, n, wi, back):  # noqa: C901 - the interpreter's dispatch
     progs, code, init, data, _, corner, texels, images = st
     r0 = progs[m, P_INIT]

@@ -126,7 +126,9 @@ def apply_program(geo, st, mt, regs, p, m, b1, b2, d, row, first, field_offsets)
     sn = _shading_normal(geo, p, b0, b1, b2, ng)
     # Cycles' sd->N faces the side the ray came from.
     wi = neg(d)
-    run_program(st, m, regs, p, b0, b1, b2, x, neg(sn) if back else sn, wi, back)
+    # One signature for every caller (evaluate.py too): the interpreter compiles once.
+    side_n = neg(sn) if back else sn
+    run_program(st, np.int64(m), regs, np.int64(p), float(b0), float(b1), float(b2), x, side_n, wi, back)
     start = mats[m, M_FIRST]
     count = mats[m, M_COUNT]
     for j in range(count):
