@@ -31,12 +31,16 @@ VDB = import_openvdb()
 ARRAYS = {}
 
 
-def write_grid(path, values, index_to_object, start):
-    grid = VDB.FloatGrid()
-    grid.copyFromArray(np.ascontiguousarray(values.transpose(2, 1, 0)), ijk=tuple(start), tolerance=0.0)
-    grid.name = "density"
-    grid.transform = VDB.createLinearTransform(np.asarray(index_to_object).T.tolist())
-    VDB.write(str(path), grids=[grid])
+def write_grid(path, values, index_to_object, start, more=()):
+    """A .vdb file of the density grid `values` and `more` (name, values) grids beside it."""
+    grids = []
+    for name, data in (("density", values),) + tuple(more):
+        grid = VDB.FloatGrid()
+        grid.copyFromArray(np.ascontiguousarray(data.transpose(2, 1, 0)), ijk=tuple(start), tolerance=0.0)
+        grid.name = name
+        grid.transform = VDB.createLinearTransform(np.asarray(index_to_object).T.tolist())
+        grids.append(grid)
+    VDB.write(str(path), grids=grids)
     return str(path)
 
 
@@ -58,6 +62,21 @@ def principled(name):
     node.inputs["Color"].default_value = (0.7, 0.5, 0.3, 1.0)
     node.inputs["Density"].default_value = 2.0
     tree.links.new(node.outputs[0], output.inputs["Volume"])
+    return material
+
+
+def fire(name):
+    """A fire's material: Principled Volume with the flame grid as Emission Strength and
+    blackbody emission from the temperature grid (x 1500 K)."""
+    material = principled(name)
+    tree = material.node_tree
+    node = tree.nodes["Principled Volume"]
+    node.inputs["Emission Color"].default_value = (1.0, 0.6, 0.2, 1.0)
+    node.inputs["Blackbody Intensity"].default_value = 1.0
+    node.inputs["Temperature"].default_value = 1500.0
+    flame = tree.nodes.new("ShaderNodeAttribute")
+    flame.attribute_name = "flame"
+    tree.links.new(flame.outputs["Fac"], node.inputs["Emission Strength"])
     return material
 
 
@@ -84,6 +103,11 @@ def medium_arrays(prefix, result):
     ARRAYS[prefix + ".density"] = density if isinstance(density, np.ndarray) else density.to_dense()
     if not isinstance(density, np.ndarray):
         ARRAYS[prefix + ".bricks"] = np.array([len(density.bricks), density.index.size])
+    for name in ("flame", "temperature"):
+        grid = getattr(medium, name)
+        if grid is not None:
+            ARRAYS[f"{prefix}.{name}"] = grid if isinstance(grid, np.ndarray) else grid.to_dense()
+    ARRAYS[prefix + ".blackbody"] = np.array(medium.blackbody_intensity)
     ARRAYS[prefix + ".p0"] = np.array(medium.p0)
     ARRAYS[prefix + ".to_world"] = medium.to_world
     ARRAYS[prefix + ".coefficients"] = np.array([medium.sigma_a, medium.sigma_s, medium.emission])
@@ -108,6 +132,19 @@ def main():
     report["sparse"] = medium_arrays("sparse", export())
     V.SPARSE_MIN_VOXELS = 1 << 62
     report["dense"] = medium_arrays("dense", export())
+    # A fire: density, flame and temperature grids (the flame and heat inside the smoke).
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    H.enable_dev_addon()
+    C.add_camera(bpy.context.scene, (0.0, -4.0, 1.0), (90.0, 0.0, 0.0), lens=35.0)
+    flame = np.where(values > 0.8, values - 0.5, 0.0).astype(np.float32)
+    ARRAYS["fire.flame"], ARRAYS["fire.temperature"] = flame, (0.5 * values).astype(np.float32)
+    path = write_grid(str(Path("fire.vdb").resolve()), values, transform, (-7, 5, 11),
+                      (("flame", flame), ("temperature", ARRAYS["fire.temperature"])))
+    volume_object("Fire", path, fire("Fire"))
+    V.SPARSE_MIN_VOXELS = 0
+    report["fire_sparse"] = medium_arrays("fire_sparse", export())
+    V.SPARSE_MIN_VOXELS = 1 << 62
+    report["fire_dense"] = medium_arrays("fire_dense", export())
     # A two-frame sequence: frame f loads seq_000f.vdb (another cloud each).
     bpy.ops.wm.read_factory_settings(use_empty=True)
     H.enable_dev_addon()
@@ -135,10 +172,10 @@ def exported(tmp_path_factory):
     return run.result, dict(np.load(folder / "arrays.npz"))
 
 
-def placed(arrays, prefix, start, shape, pad=4):
-    """The exported density put at its index position on a canvas whose voxel [pad, pad,
+def placed(arrays, prefix, start, shape, pad=4, name="density"):
+    """The exported grid `name` put at its index position on a canvas whose voxel [pad, pad,
     pad] is index `start` (x, y, z) and which reaches `pad` voxels past `shape`."""
-    density = arrays[f"{prefix}.density"]
+    density = arrays[f"{prefix}.{name}"]
     first = np.round(arrays[f"{prefix}.p0"] + 0.5).astype(int)[::-1] - np.asarray(start)[::-1] + pad
     out = np.zeros(np.add(shape, 2 * pad), np.float32)
     assert np.all(first >= 0) and np.all(first + density.shape <= out.shape), (first, density.shape)
@@ -178,3 +215,30 @@ def test_vdb_sequence_exports_each_frames_file(exported):
         assert arrays[f"seq{frame}.sparse"]
         np.testing.assert_array_equal(placed(arrays, f"seq{frame}", (0, 0, 0), values.shape), written(values))
     assert not np.array_equal(arrays["seq1.density"], arrays["seq2.density"])
+
+
+@pytest.mark.bpy
+def test_a_fire_is_read_sparsely_as_the_sampler_reads_it(exported):
+    """A .vdb fire (density, flame and temperature grids; flame as Emission Strength,
+    blackbody from the temperature): read into bricks, flame and temperature included, with
+    every voxel of the three grids equal to the sampler's dense read, and the same constants."""
+    report, arrays = exported
+    assert arrays["fire_sparse.sparse"] and not arrays["fire_dense.sparse"]
+    values = arrays["values"]
+
+    def grid(prefix, name):
+        return placed(arrays, prefix, (-7, 5, 11), values.shape, name=name)
+
+    assert report["fire_sparse"] == report["fire_dense"]  # the object's scale on the blackbody: the same
+    for name in ("density", "flame", "temperature"):
+        np.testing.assert_array_equal(grid("fire_sparse", name), grid("fire_dense", name))
+    np.testing.assert_array_equal(grid("fire_sparse", "density"), written(values))
+    flame = np.pad(np.where(values >= 0.1, arrays["fire.flame"], 0.0).astype(np.float32), 4)
+    np.testing.assert_array_equal(grid("fire_sparse", "flame"), flame)
+    heat = arrays["fire.temperature"]
+    kelvin = (1500.0 * np.where(heat >= 0.1, heat, 0.0).astype(np.float64)).astype(np.float32)
+    np.testing.assert_array_equal(grid("fire_sparse", "temperature"), np.pad(kelvin, 4))  # the grid x 1500 K
+    for key in ("to_world", "coefficients", "scale_g", "blackbody"):
+        np.testing.assert_allclose(arrays[f"fire_sparse.{key}"], arrays[f"fire_dense.{key}"], rtol=1e-6,
+                                   atol=1e-9)
+    assert np.all(arrays["fire_sparse.coefficients"][2] > 0.0)  # the flame's colour

@@ -89,9 +89,8 @@ def boundary_box(grid: GridMedium) -> tuple[np.ndarray, np.ndarray]:
     start = np.asarray(grid.start, np.float64)
     shape = np.array(grid.density.shape[::-1])
     full = (start - 0.5, start + shape - 0.5)
-    if isinstance(grid.density, SparseGrid):  # sparse_volume: a density grid alone
-        empty = grid.density.shell_max() == 0.0 and not np.any(np.asarray(grid.emission) != 0.0)
-        return (start, start + shape - 1.0) if empty and np.all(shape >= 3) else full
+    if isinstance(grid.density, SparseGrid):  # sparse_volume: emission only with a flame grid
+        return _sparse_boundary(grid, start, shape, full)
     if np.any(shape < 3) or (grid.flame is None and np.any(np.asarray(grid.emission) != 0.0)):
         return full
     from renderer.media.blackbody import blackbody_emission_voxels
@@ -102,6 +101,21 @@ def boundary_box(grid: GridMedium) -> tuple[np.ndarray, np.ndarray]:
     if grid.temperature is not None:  # its emission, as the renderer compiles it (0 K may emit)
         layers.append(blackbody_emission_voxels(grid.temperature[shell], grid.blackbody_intensity))
     if any(np.any(layer != 0.0) for layer in layers):
+        return full
+    return start, start + shape - 1.0
+
+
+def _sparse_boundary(grid: GridMedium, start: np.ndarray, shape: np.ndarray, full):
+    """boundary_box for sparse grids: the same test on their outer voxel layers."""
+    from renderer.media.blackbody import blackbody_emission_voxels
+
+    grids = [g for g in (grid.density, grid.flame, grid.temperature) if g is not None]
+    layers = [g.shell_max() for g in grids]
+    if grid.temperature is not None:  # 0 K emits too when the intensity is below 1
+        cold = blackbody_emission_voxels(np.zeros(1, np.float32), grid.blackbody_intensity)
+        layers.append(float(np.max(cold)))
+    if np.any(shape < 3) or any(layer != 0.0 for layer in layers) or (
+            grid.flame is None and np.any(np.asarray(grid.emission) != 0.0)):
         return full
     return start, start + shape - 1.0
 
