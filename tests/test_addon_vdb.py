@@ -80,6 +80,46 @@ def fire(name):
     return material
 
 
+def smoke_domain(transform):
+    """A fire's gas domain (2 x 2 x 3 box, resolution 16) with a synthesised cache file for
+    frame 3 (density and flame; nothing is simulated); its material reads the density and
+    the temperature Cycles derives from the flame."""
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    H.enable_dev_addon()
+    scene = bpy.context.scene
+    C.add_camera(scene, (0.0, -4.0, 1.0), (90.0, 0.0, 0.0), lens=35.0)
+    mesh = bpy.data.meshes.new("Domain")
+    corners = [(x, y, z) for x in (-1, 1) for y in (-1, 1) for z in (0, 2)]
+    mesh.from_pydata(corners, [], [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4),
+                                   (1, 5, 7, 3)])
+    domain = bpy.data.objects.new("Domain", mesh)
+    scene.collection.objects.link(domain)
+    domain.scale = (1.0, 1.0, 1.5)
+    modifier = domain.modifiers.new("Fluid", "FLUID")
+    modifier.show_viewport = False  # the viewport depsgraph never runs the simulation
+    modifier.fluid_type = "DOMAIN"
+    settings = modifier.domain_settings
+    settings.cache_directory = str(Path("smoke_cache").resolve())
+    settings.cache_type = "MODULAR"
+    settings.resolution_max = 16
+    settings.flame_ignition, settings.flame_max_temp = 1.5, 3.0
+    rng = np.random.default_rng(5)
+    shape = (16, 11, 11)  # (nz, ny, nx) of the domain at resolution 16
+    density = np.zeros(shape, np.float32)
+    density[3:12, 2:9, 3:8] = rng.random((9, 7, 5)).astype(np.float32) + 0.05
+    flame = np.zeros(shape, np.float32)
+    flame[4:8, 3:7, 4:7] = rng.random((4, 4, 3)).astype(np.float32)
+    ARRAYS["smoke.values"] = density
+    Path("smoke_cache/data").mkdir(parents=True)
+    write_grid("smoke_cache/data/fluid_data_0003.vdb", density, transform, (0, 0, 0), (("flame", flame),))
+    material = principled("Smoke Domain")
+    node = material.node_tree.nodes["Principled Volume"]
+    node.inputs["Blackbody Intensity"].default_value = 1.0
+    node.inputs["Temperature"].default_value = 1000.0
+    mesh.materials.append(material)
+    scene.frame_set(3)
+
+
 def volume_object(name, path, material):
     volume = bpy.data.volumes.new(name)
     volume.filepath = path
@@ -145,6 +185,10 @@ def main():
     report["fire_sparse"] = medium_arrays("fire_sparse", export())
     V.SPARSE_MIN_VOXELS = 1 << 62
     report["fire_dense"] = medium_arrays("fire_dense", export())
+    smoke_domain(transform)
+    for kind, least in (("sparse", 0), ("dense", 1 << 62)):
+        V.SPARSE_MIN_VOXELS = least
+        report[f"smoke_{kind}"] = medium_arrays(f"smoke_{kind}", export())
     # A two-frame sequence: frame f loads seq_000f.vdb (another cloud each).
     bpy.ops.wm.read_factory_settings(use_empty=True)
     H.enable_dev_addon()
@@ -242,3 +286,21 @@ def test_a_fire_is_read_sparsely_as_the_sampler_reads_it(exported):
         np.testing.assert_allclose(arrays[f"fire_sparse.{key}"], arrays[f"fire_dense.{key}"], rtol=1e-6,
                                    atol=1e-9)
     assert np.all(arrays["fire_sparse.coefficients"][2] > 0.0)  # the flame's colour
+
+
+@pytest.mark.bpy
+def test_a_smoke_domain_cache_is_read_sparsely_as_the_sampler_reads_it(exported):
+    """A gas domain's cache file (density and flame; the temperature Cycles derives from the
+    flame): the sparse read's density and temperature equal the sampler's voxel for voxel,
+    placed in the domain box as the dense path places them."""
+    report, arrays = exported
+    assert arrays["smoke_sparse.sparse"] and not arrays["smoke_dense.sparse"]
+    assert report["smoke_sparse"] == report["smoke_dense"]
+    shape = arrays["smoke.values"].shape
+    for name in ("density", "temperature"):
+        np.testing.assert_array_equal(placed(arrays, "smoke_sparse", (0, 0, 0), shape, name=name),
+                                      placed(arrays, "smoke_dense", (0, 0, 0), shape, name=name))
+    assert arrays["smoke_sparse.temperature"].max() > 1000.0  # kelvin, from the flame
+    for key in ("to_world", "coefficients", "scale_g", "blackbody"):
+        np.testing.assert_allclose(arrays[f"smoke_sparse.{key}"], arrays[f"smoke_dense.{key}"], rtol=1e-6,
+                                   atol=1e-9)

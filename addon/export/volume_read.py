@@ -1,13 +1,14 @@
 """One volume's grids read and turned into a GridMedium: sparsely from its .vdb file, or densely.
 
-The choice (GridReader.read): a Volume object that loads a .vdb file (no modifiers) whose
-index box holds SPARSE_MIN_VOXELS or more is read sparsely, when its grids are float grids
-with background 0 and its material is constant coefficients times one grid (density),
-another (flame) for the emission, and a blackbody temperature (vdb_reader reads the file
-into 8^3 bricks of the occupied voxels, sparse_volume fits the material on them). Anything
-else (volumes made by modifiers or geometry nodes, smoke domains, smaller boxes, other
-materials) goes through the geometry-node sampler into dense grids: cleaned (clean_grid),
-evaluated per voxel and factored (grid_fields), cropped to the non-zero voxels.
+The choice (GridReader.read): a Volume object that loads a .vdb file (no modifiers), or a
+smoke domain (its frame's cache file), whose index box holds SPARSE_MIN_VOXELS or more is
+read sparsely, when its grids are float grids with background 0 and its material is
+constant coefficients times one grid (density), another (flame) for the emission, and a
+blackbody temperature (vdb_reader reads the file into 8^3 bricks of the occupied voxels,
+sparse_volume fits the material on them). Anything else (volumes made by modifiers or
+geometry nodes, smaller boxes, other materials) goes through the geometry-node sampler into
+dense grids: cleaned (clean_grid), evaluated per voxel and factored (grid_fields), cropped
+to the non-zero voxels.
 """
 
 from __future__ import annotations
@@ -54,7 +55,7 @@ class GridReader:
         self.messages = messages
 
     def read(self, sampler: GridSampler, source: VolumeSource) -> GridMedium | None:
-        if source.filepath:
+        if source.filepath or source.smoke is not None:
             try:
                 medium = self._read_sparse(source)
             except (OSError, RuntimeError, KeyError, ValueError):  # the sampler reads it, or says why not
@@ -83,8 +84,9 @@ class GridReader:
     def _read_sparse(self, source: VolumeSource) -> GridMedium | None:
         """The volume's file read into bricks (vdb_reader, sparse_volume), or None when the
         sampler path should read it: a small box, grids that are not float, a material that
-        is not constant coefficients times one grid."""
-        vdb = VdbFile(source.filepath)
+        is not constant coefficients times one grid (and another for the emission). A smoke
+        domain's cache file is read so too, its grids converted as the dense path does."""
+        vdb = VdbFile(source.smoke.path if source.smoke is not None else source.filepath)
         info = vdb.info()
         if not info.grids:
             return None
@@ -98,14 +100,16 @@ class GridReader:
         start, shape = index_box(primary, info.bounds)
         if int(np.prod(shape)) < SPARSE_MIN_VOXELS:
             return None
-        grids = vdb.read_bricks(wanted, start, shape, source.clipping, source.subject, self.messages)
-        if grids is None or not any(len(g.bricks) and g.max() > 0.0 for g in grids.values()):
-            return None
-        zero = {name: np.zeros(1, np.float32) for name in grids}
+        zero = {name: np.zeros(1, np.float32) for name in wanted}
         if not self._empty_without_grids(source, zero):
             return None  # the material gives something where every grid is 0: dense path
+        convert = source.smoke.attributes if source.smoke is not None else None
+        grids = vdb.read_bricks(wanted, start, shape, source.clipping, source.subject, self.messages, convert)
+        if grids is None or not any(len(g.bricks) and g.max() > 0.0 for g in grids.values()):
+            return None
+        index_to_object = primary.index_to_object if source.smoke is None else source.smoke.index_to_object()
         built = build_sparse(grids, lambda values: self._coefficients(source, values), np.asarray(start),
-                             primary.index_to_object)
+                             index_to_object)
         if built is None:
             return None
         medium, fields = built
