@@ -304,3 +304,23 @@ def test_a_smoke_domain_cache_is_read_sparsely_as_the_sampler_reads_it(exported)
     for key in ("to_world", "coefficients", "scale_g", "blackbody"):
         np.testing.assert_allclose(arrays[f"smoke_sparse.{key}"], arrays[f"smoke_dense.{key}"], rtol=1e-6,
                                    atol=1e-9)
+
+
+def test_a_vdb_slab_is_cleaned_as_clean_grid_cleans_a_grid():
+    """vdb_reader's in-place cleaning: NaN, infinite, negative and clipped voxels read 0,
+    counted in the slab's own 8 layers (the ninth is the next row's first)."""
+    from addon.export.vdb_reader import _cleaned
+
+    rng = np.random.default_rng(7)
+    slab = rng.uniform(-0.5, 2.0, (9, 10, 12)).astype(np.float32)
+    slab.flat[rng.choice(slab.size, 40, replace=False)] = [np.nan, np.inf, -np.inf, -0.0] * 10
+    for clipping in (0.0, 0.3):
+        counts = [0, 0]
+        got = _cleaned(slab.copy(), clipping, counts)
+        values = np.where(np.isfinite(slab), slab, 0.0)
+        keep = values >= clipping if clipping > 0.0 else values > 0.0
+        np.testing.assert_array_equal(got, np.where(keep, values, 0.0).astype(np.float32))
+        assert not np.signbit(got).any()
+        core = slab[:8]
+        negative = np.where(np.isfinite(core), core, 0.0) < 0.0
+        assert counts == [int((~np.isfinite(core)).sum()), int(negative.sum())]

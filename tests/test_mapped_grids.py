@@ -92,3 +92,4 @@ def test_a_shipment_names_the_mapped_file_and_its_key_follows_the_contents(small
         theirs = loaded["grid"]
         assert theirs.flags.writeable and theirs.flags.aligned and theirs.flags.c_contiguous
         assert _file_of(theirs) is not None
+

@@ -164,11 +164,15 @@ def _row_rectangle(blocks: list[np.ndarray], start: np.ndarray, z0: int, width: 
 
 
 def _cleaned(slab: np.ndarray, clipping: float, counts: list[int]) -> np.ndarray:
-    """clean_grid's rules on one slab (a copy), counting what it drops into `counts`."""
-    finite = np.isfinite(slab)
-    values = np.where(finite, slab, np.float32(0.0))
+    """clean_grid's rules on one slab, in place (the caller's own buffer), counting what it
+    drops into `counts`: non-finite voxels and negative ones read 0, and so do voxels below
+    the clipping value (at or below 0 without one)."""
     core = slice(0, BRICK)  # layer 8 is the next row's layer 0: counted there
-    counts[0] += int(finite[core].size - np.count_nonzero(finite[core]))
-    counts[1] += int(np.count_nonzero(values[core] < 0.0))
-    keep = values >= max(float(clipping), 0.0) if clipping > 0.0 else values > 0.0
-    return np.where(keep, values, np.float32(0.0))
+    finite = np.isfinite(slab)
+    if not finite.all():  # rare: the general path
+        counts[0] += int(finite[core].size - np.count_nonzero(finite[core]))
+        slab[~finite] = 0.0
+    counts[1] += int(np.count_nonzero(slab[core] < 0.0))
+    drop = slab < max(float(clipping), 0.0) if clipping > 0.0 else slab <= 0.0
+    slab[drop] = 0.0
+    return slab
