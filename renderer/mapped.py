@@ -78,6 +78,18 @@ class FileWriter:
         _remove(self.path)
 
 
+def concatenate(parts: list[np.ndarray], dtype=np.float32) -> np.ndarray:
+    """np.concatenate of 1-D arrays as `dtype`, into a mapped file when the result holds
+    MIN_BYTES or more (so several large grids joined stay out of this process's memory)."""
+    count = sum(int(part.size) for part in parts)
+    if count * np.dtype(dtype).itemsize < MIN_BYTES:
+        return np.ascontiguousarray(np.concatenate(parts), dtype)
+    writer = FileWriter()
+    for part in parts:
+        writer.write(np.asarray(part, dtype))
+    return writer.array((count,), dtype)
+
+
 def _map(path: str, digest: str, shape: tuple[int, ...], dtype: np.dtype) -> np.ndarray:
     if int(np.prod(shape)) == 0:
         _remove(path)

@@ -93,3 +93,20 @@ def test_a_shipment_names_the_mapped_file_and_its_key_follows_the_contents(small
         assert theirs.flags.writeable and theirs.flags.aligned and theirs.flags.c_contiguous
         assert _file_of(theirs) is not None
 
+
+
+def test_a_fires_grids_are_joined_in_a_mapped_file(small_files, monkeypatch):
+    """Several large grids (a fire's density and flame) compile into one grid_data array in
+    a mapped file too, not in this process's memory; its values are the grids', in order."""
+    from renderer.media.compile import build_media_data
+    from renderer.scene import Medium
+
+    monkeypatch.setattr(mapped, "MIN_BYTES", bricks.MIN_BYTES)
+    dense = _cloud(5)
+    grids = sparse_from_dense({"density": dense, "flame": np.where(dense > 1.5, dense, 0.0)})
+    medium = Medium("fire", type="grid", sigma_a=(1, 1, 1), sigma_s=(1, 1, 1), emission=(1, 1, 1),
+                    density=grids["density"], flame=grids["flame"])
+    data = build_media_data([medium]).grid_data
+    assert mapped.reference(data) is not None
+    joined = np.concatenate([grids[n].zero_led().reshape(-1) for n in ("density", "flame")])
+    np.testing.assert_array_equal(data, joined)

@@ -156,12 +156,15 @@ def _fits(c: VoxelCoefficients, keys: tuple[str, ...], grid: np.ndarray,
     g = np.asarray(grid, np.float64)
     norm = float(g @ g)
     for key in keys:
-        values = np.broadcast_to(np.asarray(getattr(c, key), np.float64), (len(g), 3))
-        scale = float(np.max(np.abs(values))) if values.size else 0.0
-        if norm == 0.0:
-            if scale > 0.0:
+        raw = np.asarray(getattr(c, key), np.float64)
+        if not raw.any():  # zero everywhere in the chunk (often one row): fits constants 0 only
+            if norm > 0.0 and np.any(found.setdefault(key, np.zeros(3)) != 0.0):
                 return False
             continue
+        values = np.broadcast_to(raw, (len(g), 3))
+        scale = float(np.max(np.abs(values)))
+        if norm == 0.0:
+            return False  # non-zero coefficients where the grid is 0
         fit = (g @ values) / norm
         constants = found.setdefault(key, fit)
         if np.any(np.abs(constants - fit) > EXACT * np.maximum(np.abs(constants), 1e-30)):

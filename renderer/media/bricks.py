@@ -156,7 +156,7 @@ def brick_views(slab: np.ndarray) -> np.ndarray:
     return as_strided(slab, shape, strides, writeable=False)
 
 
-MAP_CHUNK = 4096  # bricks per chunk of SparseGrid.map (12 MB of scalar bricks)
+MAP_CHUNK = 1024  # bricks per chunk of SparseGrid.map (3 MB of scalar bricks; its float64 temporaries)
 
 
 class BrickStore:
