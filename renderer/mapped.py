@@ -56,6 +56,8 @@ class FileWriter:
         self.file = os.fdopen(fd, "wb")
         self.digest = hashlib.blake2b(digest_size=16)
         self.size = 0
+        # A writer dropped before array() (the read failed halfway) leaves no file behind.
+        self._unused = weakref.finalize(self, _discard, self.file, self.path)
 
     def write(self, values: np.ndarray) -> None:
         raw = memoryview(np.ascontiguousarray(values)).cast("B")
@@ -66,6 +68,7 @@ class FileWriter:
     def array(self, shape: tuple[int, ...], dtype=np.float32) -> np.ndarray:
         """The file's contents as a (shape) array viewing a copy-on-write map of it (writes
         stay in this process; nothing here writes)."""
+        self._unused.detach()
         self.file.close()
         expected = int(np.prod(shape)) * np.dtype(dtype).itemsize
         if expected != self.size:
@@ -73,9 +76,9 @@ class FileWriter:
             raise ValueError(f"{self.size} bytes written for an array of {expected}")
         return _map(self.path, self.digest.hexdigest(), shape, np.dtype(dtype))
 
-    def discard(self) -> None:
-        self.file.close()
-        _remove(self.path)
+def _discard(file, path: str) -> None:
+    file.close()
+    _remove(path)
 
 
 def concatenate(parts: list[np.ndarray], dtype=np.float32) -> np.ndarray:

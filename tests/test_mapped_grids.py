@@ -110,3 +110,13 @@ def test_a_fires_grids_are_joined_in_a_mapped_file(small_files, monkeypatch):
     assert mapped.reference(data) is not None
     joined = np.concatenate([grids[n].zero_led().reshape(-1) for n in ("density", "flame")])
     np.testing.assert_array_equal(data, joined)
+
+
+def test_a_writer_dropped_halfway_leaves_no_file():
+    writer = mapped.FileWriter()
+    writer.write(np.arange(10.0))
+    path = writer.path
+    assert os.path.exists(path)
+    del writer
+    gc.collect()
+    assert not os.path.exists(path)
