@@ -76,7 +76,12 @@ def release_free_memory() -> None:
     A scene export frees 100s of MB of row-sized temporaries (a .vdb read slab by slab);
     glibc keeps such freed heap pages mapped, so Blender's process would hold them for the
     whole render (measured: 94 MB of the 512^3 cloud's export). malloc_trim returns them.
+    The pages of mapped files (a large grid's bricks, renderer.mapped) that the export and
+    compile read are unmapped too: the workers map the file themselves.
     """
+    from renderer.mapped import release_pages
+
+    release_pages()
     if not sys.platform.startswith("linux"):
         return
     import ctypes

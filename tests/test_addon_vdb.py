@@ -23,7 +23,7 @@ import bpy_helpers as H
 import blender_cornell as C
 
 H.enable_dev_addon()
-from addon.export import volumes as V
+from addon.export import volume_read as V
 from addon.export.scene import export_scene
 from addon.volume_grids import import_openvdb
 
@@ -31,12 +31,16 @@ VDB = import_openvdb()
 ARRAYS = {}
 
 
-def write_grid(path, values, index_to_object, start):
-    grid = VDB.FloatGrid()
-    grid.copyFromArray(np.ascontiguousarray(values.transpose(2, 1, 0)), ijk=tuple(start), tolerance=0.0)
-    grid.name = "density"
-    grid.transform = VDB.createLinearTransform(np.asarray(index_to_object).T.tolist())
-    VDB.write(str(path), grids=[grid])
+def write_grid(path, values, index_to_object, start, more=()):
+    """A .vdb file of the density grid `values` and `more` (name, values) grids beside it."""
+    grids = []
+    for name, data in (("density", values),) + tuple(more):
+        grid = VDB.FloatGrid()
+        grid.copyFromArray(np.ascontiguousarray(data.transpose(2, 1, 0)), ijk=tuple(start), tolerance=0.0)
+        grid.name = name
+        grid.transform = VDB.createLinearTransform(np.asarray(index_to_object).T.tolist())
+        grids.append(grid)
+    VDB.write(str(path), grids=grids)
     return str(path)
 
 
@@ -59,6 +63,61 @@ def principled(name):
     node.inputs["Density"].default_value = 2.0
     tree.links.new(node.outputs[0], output.inputs["Volume"])
     return material
+
+
+def fire(name):
+    """A fire's material: Principled Volume with the flame grid as Emission Strength and
+    blackbody emission from the temperature grid (x 1500 K)."""
+    material = principled(name)
+    tree = material.node_tree
+    node = tree.nodes["Principled Volume"]
+    node.inputs["Emission Color"].default_value = (1.0, 0.6, 0.2, 1.0)
+    node.inputs["Blackbody Intensity"].default_value = 1.0
+    node.inputs["Temperature"].default_value = 1500.0
+    flame = tree.nodes.new("ShaderNodeAttribute")
+    flame.attribute_name = "flame"
+    tree.links.new(flame.outputs["Fac"], node.inputs["Emission Strength"])
+    return material
+
+
+def smoke_domain(transform):
+    """A fire's gas domain (2 x 2 x 3 box, resolution 16) with a synthesised cache file for
+    frame 3 (density and flame; nothing is simulated); its material reads the density and
+    the temperature Cycles derives from the flame."""
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    H.enable_dev_addon()
+    scene = bpy.context.scene
+    C.add_camera(scene, (0.0, -4.0, 1.0), (90.0, 0.0, 0.0), lens=35.0)
+    mesh = bpy.data.meshes.new("Domain")
+    corners = [(x, y, z) for x in (-1, 1) for y in (-1, 1) for z in (0, 2)]
+    mesh.from_pydata(corners, [], [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4),
+                                   (1, 5, 7, 3)])
+    domain = bpy.data.objects.new("Domain", mesh)
+    scene.collection.objects.link(domain)
+    domain.scale = (1.0, 1.0, 1.5)
+    modifier = domain.modifiers.new("Fluid", "FLUID")
+    modifier.show_viewport = False  # the viewport depsgraph never runs the simulation
+    modifier.fluid_type = "DOMAIN"
+    settings = modifier.domain_settings
+    settings.cache_directory = str(Path("smoke_cache").resolve())
+    settings.cache_type = "MODULAR"
+    settings.resolution_max = 16
+    settings.flame_ignition, settings.flame_max_temp = 1.5, 3.0
+    rng = np.random.default_rng(5)
+    shape = (16, 11, 11)  # (nz, ny, nx) of the domain at resolution 16
+    density = np.zeros(shape, np.float32)
+    density[3:12, 2:9, 3:8] = rng.random((9, 7, 5)).astype(np.float32) + 0.05
+    flame = np.zeros(shape, np.float32)
+    flame[4:8, 3:7, 4:7] = rng.random((4, 4, 3)).astype(np.float32)
+    ARRAYS["smoke.values"] = density
+    Path("smoke_cache/data").mkdir(parents=True)
+    write_grid("smoke_cache/data/fluid_data_0003.vdb", density, transform, (0, 0, 0), (("flame", flame),))
+    material = principled("Smoke Domain")
+    node = material.node_tree.nodes["Principled Volume"]
+    node.inputs["Blackbody Intensity"].default_value = 1.0
+    node.inputs["Temperature"].default_value = 1000.0
+    mesh.materials.append(material)
+    scene.frame_set(3)
 
 
 def volume_object(name, path, material):
@@ -84,6 +143,11 @@ def medium_arrays(prefix, result):
     ARRAYS[prefix + ".density"] = density if isinstance(density, np.ndarray) else density.to_dense()
     if not isinstance(density, np.ndarray):
         ARRAYS[prefix + ".bricks"] = np.array([len(density.bricks), density.index.size])
+    for name in ("flame", "temperature"):
+        grid = getattr(medium, name)
+        if grid is not None:
+            ARRAYS[f"{prefix}.{name}"] = grid if isinstance(grid, np.ndarray) else grid.to_dense()
+    ARRAYS[prefix + ".blackbody"] = np.array(medium.blackbody_intensity)
     ARRAYS[prefix + ".p0"] = np.array(medium.p0)
     ARRAYS[prefix + ".to_world"] = medium.to_world
     ARRAYS[prefix + ".coefficients"] = np.array([medium.sigma_a, medium.sigma_s, medium.emission])
@@ -108,6 +172,23 @@ def main():
     report["sparse"] = medium_arrays("sparse", export())
     V.SPARSE_MIN_VOXELS = 1 << 62
     report["dense"] = medium_arrays("dense", export())
+    # A fire: density, flame and temperature grids (the flame and heat inside the smoke).
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    H.enable_dev_addon()
+    C.add_camera(bpy.context.scene, (0.0, -4.0, 1.0), (90.0, 0.0, 0.0), lens=35.0)
+    flame = np.where(values > 0.8, values - 0.5, 0.0).astype(np.float32)
+    ARRAYS["fire.flame"], ARRAYS["fire.temperature"] = flame, (0.5 * values).astype(np.float32)
+    path = write_grid(str(Path("fire.vdb").resolve()), values, transform, (-7, 5, 11),
+                      (("flame", flame), ("temperature", ARRAYS["fire.temperature"])))
+    volume_object("Fire", path, fire("Fire"))
+    V.SPARSE_MIN_VOXELS = 0
+    report["fire_sparse"] = medium_arrays("fire_sparse", export())
+    V.SPARSE_MIN_VOXELS = 1 << 62
+    report["fire_dense"] = medium_arrays("fire_dense", export())
+    smoke_domain(transform)
+    for kind, least in (("sparse", 0), ("dense", 1 << 62)):
+        V.SPARSE_MIN_VOXELS = least
+        report[f"smoke_{kind}"] = medium_arrays(f"smoke_{kind}", export())
     # A two-frame sequence: frame f loads seq_000f.vdb (another cloud each).
     bpy.ops.wm.read_factory_settings(use_empty=True)
     H.enable_dev_addon()
@@ -135,10 +216,10 @@ def exported(tmp_path_factory):
     return run.result, dict(np.load(folder / "arrays.npz"))
 
 
-def placed(arrays, prefix, start, shape, pad=4):
-    """The exported density put at its index position on a canvas whose voxel [pad, pad,
+def placed(arrays, prefix, start, shape, pad=4, name="density"):
+    """The exported grid `name` put at its index position on a canvas whose voxel [pad, pad,
     pad] is index `start` (x, y, z) and which reaches `pad` voxels past `shape`."""
-    density = arrays[f"{prefix}.density"]
+    density = arrays[f"{prefix}.{name}"]
     first = np.round(arrays[f"{prefix}.p0"] + 0.5).astype(int)[::-1] - np.asarray(start)[::-1] + pad
     out = np.zeros(np.add(shape, 2 * pad), np.float32)
     assert np.all(first >= 0) and np.all(first + density.shape <= out.shape), (first, density.shape)
@@ -178,3 +259,68 @@ def test_vdb_sequence_exports_each_frames_file(exported):
         assert arrays[f"seq{frame}.sparse"]
         np.testing.assert_array_equal(placed(arrays, f"seq{frame}", (0, 0, 0), values.shape), written(values))
     assert not np.array_equal(arrays["seq1.density"], arrays["seq2.density"])
+
+
+@pytest.mark.bpy
+def test_a_fire_is_read_sparsely_as_the_sampler_reads_it(exported):
+    """A .vdb fire (density, flame and temperature grids; flame as Emission Strength,
+    blackbody from the temperature): read into bricks, flame and temperature included, with
+    every voxel of the three grids equal to the sampler's dense read, and the same constants."""
+    report, arrays = exported
+    assert arrays["fire_sparse.sparse"] and not arrays["fire_dense.sparse"]
+    values = arrays["values"]
+
+    def grid(prefix, name):
+        return placed(arrays, prefix, (-7, 5, 11), values.shape, name=name)
+
+    assert report["fire_sparse"] == report["fire_dense"]  # the object's scale on the blackbody: the same
+    for name in ("density", "flame", "temperature"):
+        np.testing.assert_array_equal(grid("fire_sparse", name), grid("fire_dense", name))
+    np.testing.assert_array_equal(grid("fire_sparse", "density"), written(values))
+    flame = np.pad(np.where(values >= 0.1, arrays["fire.flame"], 0.0).astype(np.float32), 4)
+    np.testing.assert_array_equal(grid("fire_sparse", "flame"), flame)
+    heat = arrays["fire.temperature"]
+    kelvin = (1500.0 * np.where(heat >= 0.1, heat, 0.0).astype(np.float64)).astype(np.float32)
+    np.testing.assert_array_equal(grid("fire_sparse", "temperature"), np.pad(kelvin, 4))  # the grid x 1500 K
+    for key in ("to_world", "coefficients", "scale_g", "blackbody"):
+        np.testing.assert_allclose(arrays[f"fire_sparse.{key}"], arrays[f"fire_dense.{key}"], rtol=1e-6,
+                                   atol=1e-9)
+    assert np.all(arrays["fire_sparse.coefficients"][2] > 0.0)  # the flame's colour
+
+
+@pytest.mark.bpy
+def test_a_smoke_domain_cache_is_read_sparsely_as_the_sampler_reads_it(exported):
+    """A gas domain's cache file (density and flame; the temperature Cycles derives from the
+    flame): the sparse read's density and temperature equal the sampler's voxel for voxel,
+    placed in the domain box as the dense path places them."""
+    report, arrays = exported
+    assert arrays["smoke_sparse.sparse"] and not arrays["smoke_dense.sparse"]
+    assert report["smoke_sparse"] == report["smoke_dense"]
+    shape = arrays["smoke.values"].shape
+    for name in ("density", "temperature"):
+        np.testing.assert_array_equal(placed(arrays, "smoke_sparse", (0, 0, 0), shape, name=name),
+                                      placed(arrays, "smoke_dense", (0, 0, 0), shape, name=name))
+    assert arrays["smoke_sparse.temperature"].max() > 1000.0  # kelvin, from the flame
+    for key in ("to_world", "coefficients", "scale_g", "blackbody"):
+        np.testing.assert_allclose(arrays[f"smoke_sparse.{key}"], arrays[f"smoke_dense.{key}"], rtol=1e-6,
+                                   atol=1e-9)
+
+
+def test_a_vdb_slab_is_cleaned_as_clean_grid_cleans_a_grid():
+    """vdb_reader's in-place cleaning: NaN, infinite, negative and clipped voxels read 0,
+    counted in the slab's own 8 layers (the ninth is the next row's first)."""
+    from addon.export.vdb_reader import _cleaned
+
+    rng = np.random.default_rng(7)
+    slab = rng.uniform(-0.5, 2.0, (9, 10, 12)).astype(np.float32)
+    slab.flat[rng.choice(slab.size, 40, replace=False)] = [np.nan, np.inf, -np.inf, -0.0] * 10
+    for clipping in (0.0, 0.3):
+        counts = [0, 0]
+        got = _cleaned(slab.copy(), clipping, counts)
+        values = np.where(np.isfinite(slab), slab, 0.0)
+        keep = values >= clipping if clipping > 0.0 else values > 0.0
+        np.testing.assert_array_equal(got, np.where(keep, values, 0.0).astype(np.float32))
+        assert not np.signbit(got).any()
+        core = slab[:8]
+        negative = np.where(np.isfinite(core), core, 0.0) < 0.0
+        assert counts == [int((~np.isfinite(core)).sum()), int(negative.sum())]

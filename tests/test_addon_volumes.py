@@ -298,7 +298,7 @@ import bpy_helpers as H
 import blender_cornell as C
 
 H.enable_dev_addon()
-from addon.export import volumes as V
+from addon.export import volume_read as V
 from addon.export.grid_sampler import GridSampler, index_box
 from addon.export.scene import export_scene
 from addon.volume_grids import import_openvdb, smoke_ball_density, write_pbrt

@@ -6,7 +6,7 @@ the memory of each and the CPU seconds per sample (pixel sample, all bounces) re
 the same view on this thread (bench.contrast.seconds_per_sample), and the cost of one
 trilinear lookup at random points.
 Where sparse is no slower per sample, the add-on may read grids sparsely (its threshold is
-addon/export/volumes.py SPARSE_MIN_VOXELS).
+addon/export/volume_read.py SPARSE_MIN_VOXELS).
 """
 
 from __future__ import annotations

@@ -87,10 +87,12 @@ class VdbFile:
         return self.meta[name].valueTypeName in SPARSE_TYPES
 
     def read_bricks(self, names: dict[str, str], start, shape, clipping: float, subject: str,
-                    messages: Messages) -> dict[str, SparseGrid] | None:
+                    messages: Messages, convert=None) -> dict[str, SparseGrid] | None:
         """Grids names[attribute] over the index box start .. start + shape - 1 (x, y, z) as
-        SparseGrids sharing one brick index (keys: attributes), cleaned as clean_grid does;
-        None if a grid's background is not 0 (then the sampler path reads it)."""
+        SparseGrids sharing one brick index (keys: attributes), cleaned as clean_grid does,
+        then convert({attribute: slab}) (a per-voxel function keeping 0 at 0: a smoke cache's
+        attributes) if given; None if a grid's background is not 0 (then the sampler path
+        reads it)."""
         grids = {attribute: self.vdb.read(self.path, name) for attribute, name in names.items()}
         if any(float(grid.background) != 0.0 for grid in grids.values()):
             return None
@@ -114,7 +116,7 @@ class VdbFile:
                 slab = np.zeros(slab_shape, np.float32)
                 slab[:, y0:y1, x0:x1] = buffer.transpose(2, 1, 0)
                 slabs[attribute] = _cleaned(slab, clipping, counts[attribute])
-            builder.add_row(bk, slabs)
+            builder.add_row(bk, convert(slabs) if convert is not None else slabs)
         grids.clear()  # the file's trees (as large as the bricks) go before finish() gathers them
         grid = slabs = None  # the loop variable holds a tree too
         for attribute, (bad, negative) in counts.items():
@@ -162,11 +164,15 @@ def _row_rectangle(blocks: list[np.ndarray], start: np.ndarray, z0: int, width: 
 
 
 def _cleaned(slab: np.ndarray, clipping: float, counts: list[int]) -> np.ndarray:
-    """clean_grid's rules on one slab (a copy), counting what it drops into `counts`."""
-    finite = np.isfinite(slab)
-    values = np.where(finite, slab, np.float32(0.0))
+    """clean_grid's rules on one slab, in place (the caller's own buffer), counting what it
+    drops into `counts`: non-finite voxels and negative ones read 0, and so do voxels below
+    the clipping value (at or below 0 without one)."""
     core = slice(0, BRICK)  # layer 8 is the next row's layer 0: counted there
-    counts[0] += int(finite[core].size - np.count_nonzero(finite[core]))
-    counts[1] += int(np.count_nonzero(values[core] < 0.0))
-    keep = values >= max(float(clipping), 0.0) if clipping > 0.0 else values > 0.0
-    return np.where(keep, values, np.float32(0.0))
+    finite = np.isfinite(slab)
+    if not finite.all():  # rare: the general path
+        counts[0] += int(finite[core].size - np.count_nonzero(finite[core]))
+        slab[~finite] = 0.0
+    counts[1] += int(np.count_nonzero(slab[core] < 0.0))
+    drop = slab < max(float(clipping), 0.0) if clipping > 0.0 else slab <= 0.0
+    slab[drop] = 0.0
+    return slab

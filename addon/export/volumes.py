@@ -4,8 +4,9 @@ Each rendered volume becomes a grid Medium plus a closed box Mesh around the gri
 material has no lobes (an invisible boundary that carries the medium). The steps, per volume
 data and material (instances share the result, only the transform differs):
 
-1. read the grids the material looks up (grid_sampler: a temporary geometry-node tree) over
-   the volume's bounds plus one voxel of background on every side;
+1. read the grids the material looks up over the volume's bounds plus one voxel of
+   background on every side (volume_read: sparsely from a .vdb file into bricks, or densely
+   through grid_sampler, a temporary geometry-node tree; steps 2-4 are the dense path's);
 2. clean them as Cycles sees them: voxels below the volume's clipping value are empty (0),
    NaN and infinite voxels are dropped with a warning;
 3. evaluate the material at every voxel (volume_shader) and write the coefficients as Haze's
@@ -31,29 +32,21 @@ from __future__ import annotations
 
 import math
 import traceback
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
 from renderer.media.bricks import SparseGrid
 from renderer.scene import Material, Medium, Mesh
 
-from .grid_fields import FieldBuilder, GridMedium, clean_grid, crop_to_voxels, evaluate_fields, shape_text
-from .grid_sampler import GridInfo, GridSampler, VolumeInfo, index_box
+from .grid_fields import GridMedium
+from .grid_sampler import GridSampler
 from .materials import MaterialLibrary
 from .messages import Messages, material_subject, object_subject
-from .smoke import CACHE_GRIDS, SmokeCache, smoke_cache
-from .sparse_volume import build_sparse
-from .vdb_reader import VdbFile
-from .volume_shader import VoxelCoefficients, evaluate_volume_material, grids_a_material_reads
+from .smoke import CACHE_GRIDS, smoke_cache
+from .volume_read import GridReader, VolumeSource
 
 INTERFACE_MATERIAL = "Haze Volume Boundary"
-CROP_GRIDS = True  # tests switch it off to measure what cropping saves
-MAX_VOXELS = 1 << 28  # dense grids beyond this (1 GB per float32 grid) are refused
-# Volume objects loading a .vdb file whose index box holds at least this many voxels are
-# read sparsely (vdb_reader: 8^3 bricks of the occupied voxels only); smaller ones through
-# the sampler into dense grids, which look up a little faster. Tests set it to 0.
-SPARSE_MIN_VOXELS = 1 << 18
 BOX_TRIANGLES = np.array([
     (0, 2, 1), (1, 2, 3), (4, 5, 6), (5, 7, 6),  # z = p0, z = p1
     (0, 1, 4), (1, 5, 4), (2, 6, 3), (3, 6, 7),  # y = p0, y = p1
@@ -89,9 +82,8 @@ def boundary_box(grid: GridMedium) -> tuple[np.ndarray, np.ndarray]:
     start = np.asarray(grid.start, np.float64)
     shape = np.array(grid.density.shape[::-1])
     full = (start - 0.5, start + shape - 0.5)
-    if isinstance(grid.density, SparseGrid):  # sparse_volume: a density grid alone
-        empty = grid.density.shell_max() == 0.0 and not np.any(np.asarray(grid.emission) != 0.0)
-        return (start, start + shape - 1.0) if empty and np.all(shape >= 3) else full
+    if isinstance(grid.density, SparseGrid):  # sparse_volume: emission only with a flame grid
+        return _sparse_boundary(grid, start, shape, full)
     if np.any(shape < 3) or (grid.flame is None and np.any(np.asarray(grid.emission) != 0.0)):
         return full
     from renderer.media.blackbody import blackbody_emission_voxels
@@ -106,6 +98,21 @@ def boundary_box(grid: GridMedium) -> tuple[np.ndarray, np.ndarray]:
     return start, start + shape - 1.0
 
 
+def _sparse_boundary(grid: GridMedium, start: np.ndarray, shape: np.ndarray, full):
+    """boundary_box for sparse grids: the same test on their outer voxel layers."""
+    from renderer.media.blackbody import blackbody_emission_voxels
+
+    grids = [g for g in (grid.density, grid.flame, grid.temperature) if g is not None]
+    layers = [g.shell_max() for g in grids]
+    if grid.temperature is not None:  # 0 K emits too when the intensity is below 1
+        cold = blackbody_emission_voxels(np.zeros(1, np.float32), grid.blackbody_intensity)
+        layers.append(float(np.max(cold)))
+    if np.any(shape < 3) or any(layer != 0.0 for layer in layers) or (
+            grid.flame is None and np.any(np.asarray(grid.emission) != 0.0)):
+        return full
+    return start, start + shape - 1.0
+
+
 def object_density_factor(matrix: np.ndarray, space: str) -> float:
     """Cycles' object_volume_density: densities of object-space volumes follow the scale."""
     if space != "OBJECT":
@@ -115,21 +122,6 @@ def object_density_factor(matrix: np.ndarray, space: str) -> float:
 
 
 # ---------------------------------------------------------------------------- Blender side
-
-
-@dataclass(frozen=True)
-class VolumeSource:
-    """Where a rendered volume's grids come from and how its material reads them: a volume
-    object to sample (`target`) or a smoke domain's cache file (`smoke`)."""
-
-    key: tuple  # instances with equal keys share one GridMedium
-    subject: str  # the Blender object, for messages
-    material: object | None
-    clipping: float
-    target: object | None = None  # the original volume object
-    filepath: str = ""  # the .vdb file (this frame's, for a sequence) a modifier-free volume loads
-    smoke: SmokeCache | None = None
-    grid_names: dict[str, str] = field(default_factory=dict)  # material attribute -> grid in the volume
 
 
 @dataclass
@@ -163,6 +155,7 @@ class VolumeExporter:
                  subframe: float = 0.0) -> None:
         self.library = library
         self.messages = messages
+        self.reader = GridReader(messages)
         self.frame, self.subframe = frame, subframe
         self.instances: list[VolumeInstance] = []
         self.stats: list[str] = []
@@ -250,7 +243,7 @@ class VolumeExporter:
 
     def _convert(self, sampler: GridSampler, source: VolumeSource) -> GridMedium | None:
         try:
-            return self._read_and_build(sampler, source)
+            return self.reader.read(sampler, source)
         except (RuntimeError, ValueError, MemoryError) as error:
             self.messages.warn(source.subject, f"its grids could not be read ({error}); it is not rendered")
         except Exception as error:  # one unreadable volume must not stop the render of the others
@@ -258,147 +251,6 @@ class VolumeExporter:
             self.messages.warn(source.subject, f"reading its grids failed ({type(error).__name__}: {error}); "
                                                "it is not rendered")
         return None
-
-    def _read_and_build(self, sampler: GridSampler, source: VolumeSource) -> GridMedium | None:
-        if source.filepath:
-            try:
-                medium = self._read_sparse(source)
-            except (OSError, RuntimeError, KeyError, ValueError):  # the sampler reads it, or says why not
-                medium = None
-            if medium is not None:
-                return medium
-        target = source.target if source.smoke is None else sampler.file_volume(source.smoke.path)
-        info = sampler.inspect(target)
-        if not info.grids:
-            self.messages.warn(source.subject, "has no grids (an empty volume or a file that did not load); "
-                                               "it is not rendered")
-            return None
-        wanted = self._wanted_grids(source, info)
-        if not wanted:
-            return None
-        primary = info.grids[wanted.get("density") or next(iter(wanted.values()))]
-        start, shape = self._read_box(source, primary, info)
-        raw = self._read_grids(sampler, target, source, info, wanted, primary, start, shape)
-        if raw is None:
-            return None
-        read_shape = (int(shape[2]), int(shape[1]), int(shape[0]))
-        if CROP_GRIDS and self._empty_without_grids(source, raw):
-            raw, start = crop_to_voxels(raw, np.asarray(start))
-        return self._build(source, raw, start, read_shape, primary)
-
-    def _read_sparse(self, source: VolumeSource) -> GridMedium | None:
-        """The volume's file read into bricks (vdb_reader, sparse_volume), or None when the
-        sampler path should read it: a small box, grids that are not float, a material that
-        is not constant coefficients times one grid."""
-        vdb = VdbFile(source.filepath)
-        info = vdb.info()
-        if not info.grids:
-            return None
-        wanted = self._wanted_grids(source, info)
-        if not wanted or not all(vdb.sparse_readable(name) for name in wanted.values()):
-            return None
-        primary = info.grids[wanted.get("density") or next(iter(wanted.values()))]
-        if any(not np.allclose(info.grids[g].index_to_object, primary.index_to_object, rtol=1e-6, atol=1e-9)
-               for g in wanted.values()):
-            return None  # the sampler path leaves misaligned grids out, with a warning
-        start, shape = index_box(primary, info.bounds)
-        if int(np.prod(shape)) < SPARSE_MIN_VOXELS:
-            return None
-        grids = vdb.read_bricks(wanted, start, shape, source.clipping, source.subject, self.messages)
-        if grids is None or not any(len(g.bricks) and g.max() > 0.0 for g in grids.values()):
-            return None
-        zero = {name: np.zeros(1, np.float32) for name in grids}
-        if not self._empty_without_grids(source, zero):
-            return None  # the material gives something where every grid is 0: dense path
-        built = build_sparse(grids, lambda values: self._coefficients(source, values), np.asarray(start),
-                             primary.index_to_object)
-        if built is None:
-            return None
-        medium, fields = built
-        FieldBuilder(source.subject, self.messages, (1, 1, 1), {}).warn_blackbody(fields)
-        return medium
-
-    def _empty_without_grids(self, source: VolumeSource, raw: dict[str, np.ndarray]) -> bool:
-        """Whether the material gives nothing where every grid it reads is 0: then the grids
-        can be cropped before the (per-voxel, float64) material evaluation."""
-        zero = {name: np.zeros((1,) + v.shape[3:], np.float32) for name, v in raw.items()}
-        coefficients = self._coefficients(source, zero)
-        if coefficients is None:
-            return True
-        c = coefficients
-        blackbody = any(np.any((t.temperature > 0.0) & (t.intensity > 0.0)) for t in c.blackbody)
-        return not (np.any(c.sigma_s) or np.any(c.sigma_a) or np.any(c.emission) or blackbody)
-
-    def _wanted_grids(self, source: VolumeSource, info: VolumeInfo) -> dict[str, str]:
-        """Material attribute name -> grid name, for the grids the material reads that exist."""
-        names = grids_a_material_reads(source.material) if source.material is not None else {"density"}
-        mapping = source.grid_names or {name: name for name in info.grids}
-        wanted = {name: mapping[name] for name in sorted(names) if mapping.get(name) in info.grids}
-        unreadable = [n for n, g in wanted.items() if info.grids[g].node_type is None]
-        for name in unreadable:
-            grid = info.grids[wanted.pop(name)]
-            self.messages.warn(source.subject, f"grid '{grid.name}' of type {grid.data_type} cannot be read "
-                                               "by Haze; it reads as 0")
-        if not wanted:
-            self.messages.warn(source.subject, "its material reads none of its grids "
-                               f"({', '.join(sorted(info.grids))}); it is not rendered")
-        return wanted
-
-    def _read_box(self, source: VolumeSource, primary: GridInfo, info: VolumeInfo):
-        start, shape = index_box(primary, info.bounds)
-        if int(np.prod(shape)) > MAX_VOXELS:
-            raise ValueError(f"grid '{primary.name}' spans {shape_text(shape[::-1])} voxels, more than "
-                             f"Haze's dense grids hold ({MAX_VOXELS} voxels); lower its resolution")
-        return start, shape
-
-    def _read_grids(self, sampler, target, source: VolumeSource, info: VolumeInfo, wanted: dict[str, str],
-                    primary: GridInfo, start, shape) -> dict[str, np.ndarray] | None:
-        raw: dict[str, np.ndarray] = {}
-        for attribute, grid_name in wanted.items():
-            grid = info.grids[grid_name]
-            if not np.allclose(grid.index_to_object, primary.index_to_object, rtol=1e-6, atol=1e-9):
-                self.messages.warn(source.subject, f"grid '{grid_name}' has another voxel size or placement "
-                                   f"than grid '{primary.name}'; Haze needs them aligned and leaves it out")
-                continue
-            values = sampler.read(target, grid, start, shape)
-            raw[attribute] = clean_grid(values, source.clipping, source.subject, grid_name, self.messages)
-        if source.smoke is not None:
-            raw = source.smoke.attributes(raw)
-        if not any(np.any(v) for v in raw.values()):
-            names = ", ".join(f"'{wanted[a]}'" for a in raw)
-            self.messages.warn(source.subject, f"grids {names} have no voxels above the clipping value "
-                               f"{source.clipping:g}; the volume is not rendered")
-            return None
-        return raw
-
-    def _build(self, source: VolumeSource, raw: dict[str, np.ndarray], start, read_shape,
-               primary: GridInfo) -> GridMedium | None:
-        grid_shape = next(iter(raw.values())).shape[:3]
-        flat = {name: v.reshape(-1) if v.ndim == 3 else v.reshape(-1, 3) for name, v in raw.items()}
-        count = int(np.prod(grid_shape))
-        fields = evaluate_fields(lambda grids: self._coefficients(source, grids), flat, count)
-        if fields is None:
-            return None
-        builder = FieldBuilder(source.subject, self.messages, grid_shape, raw, CROP_GRIDS)
-        index_to_object = primary.index_to_object
-        if source.smoke is not None:
-            index_to_object = source.smoke.index_to_object()
-        medium = builder.build(fields, np.asarray(start), index_to_object, read_shape)
-        if medium is None:
-            self.messages.warn(source.subject, "its material gives no extinction or emission anywhere; it is "
-                                               "not rendered")
-        return medium
-
-    def _coefficients(self, source: VolumeSource, flat: dict[str, np.ndarray]) -> VoxelCoefficients | None:
-        if source.material is None:
-            return default_volume_coefficients(flat)
-        owner = material_subject(source.material.name_full)
-        coefficients = evaluate_volume_material(source.material, owner, self.messages, flat)
-        if coefficients is None:
-            self.messages.warn(source.subject, f"material '{source.material.name_full}' has no Volume "
-                                               "shader; the volume is not rendered (as in Cycles)")
-        return coefficients
-
 
 def volume_file(volume) -> str:
     """The absolute path of the .vdb file a Volume datablock renders at the evaluated frame
@@ -409,13 +261,3 @@ def volume_file(volume) -> str:
         return ""
     path = volume.grids.frame_filepath if volume.is_sequence else volume.filepath
     return bpy.path.abspath(path, library=volume.library) if path else ""
-
-
-def default_volume_coefficients(grids: dict[str, np.ndarray]) -> VoxelCoefficients:
-    """Cycles' default volume shader (a Principled Volume with its default inputs: Color 0.5,
-    Density 1 times the "density" grid), used for volume objects without a material."""
-    density = grids.get("density")
-    values = density[:, None].astype(np.float64) if density is not None else np.ones((1, 1))
-    half = np.full((1, 3), 0.5)
-    scattering = half * values
-    return VoxelCoefficients(scattering, half * values, np.zeros((1, 3)), [(np.zeros((1, 1)), scattering)])

@@ -13,6 +13,11 @@ which is exact because its stencils touch only its own (all zero) block.
 
 Apron voxels past the grid's last voxel repeat the edge voxel; lookups never read them
 (a clamped axis steps 0, see grid.py).
+
+Large grids are written brick row by brick row into a file that every process maps
+(renderer.mapped), never held whole in a process's own memory; each brick's least and
+largest stored value are kept beside the bricks as they are built, so majorants need not
+read the bricks again.
 """
 
 from __future__ import annotations
@@ -21,6 +26,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.lib.stride_tricks import as_strided
+
+from renderer.mapped import MIN_BYTES, FileWriter
 
 BRICK = 8  # voxels per brick and axis
 SPAN = BRICK + 1  # stored voxels per brick and axis: the brick's own and the next brick's first
@@ -47,11 +54,15 @@ class SparseGrid:
     # The renderer stores a sparse grid that way (empty bricks point at the zero brick), so a
     # grid built in it is compiled without a copy: at 512^3 the bricks are 100s of MB.
     zero_led_storage: np.ndarray | None = field(default=None, repr=False)
+    # (2, B) float32: each brick's least and largest stored value (channels included), as
+    # the builder saw them, or None (then computed from the bricks when asked for).
+    bounds: np.ndarray | None = field(default=None, repr=False)
 
     @classmethod
-    def from_zero_led(cls, shape: tuple[int, int, int], index: np.ndarray, storage: np.ndarray) -> SparseGrid:
+    def from_zero_led(cls, shape: tuple[int, int, int], index: np.ndarray, storage: np.ndarray,
+                      bounds: np.ndarray | None = None) -> SparseGrid:
         """The grid whose bricks are storage[1:]; storage[0] must be all zero."""
-        return cls(shape, index, storage[1:], storage)
+        return cls(shape, index, storage[1:], storage, bounds)
 
     def zero_led(self) -> np.ndarray:
         """(B + 1, SPAN, SPAN, SPAN[, 3]) float32: a zero brick, then the bricks (no copy when
@@ -78,20 +89,25 @@ class SparseGrid:
         return self.index.nbytes + self.bricks.nbytes
 
     def max(self) -> float:
-        return float(self.bricks.max()) if len(self.bricks) else 0.0
+        return float(self._per_brick(np.max).max()) if len(self.bricks) else 0.0
 
     def min(self) -> float:
         """Least voxel value (0 when some brick is empty)."""
-        lowest = float(self.bricks.min()) if len(self.bricks) else 0.0
+        lowest = float(self._per_brick(np.min).min()) if len(self.bricks) else 0.0
         return min(lowest, 0.0) if (self.index < 0).any() else lowest
+
+    def _per_brick(self, reduce) -> np.ndarray:
+        """(B,) `reduce` over each brick's stored block (channels too)."""
+        if self.bounds is not None and reduce in (np.min, np.max):
+            return self.bounds[0 if reduce is np.min else 1]
+        return reduce(self.bricks, axis=tuple(range(1, self.bricks.ndim)))
 
     def brick_reduce(self, reduce=np.max) -> np.ndarray:
         """(bz, by, bx) float64 `reduce` over each brick's stored 9^3 block (channels too);
         empty bricks give 0."""
         out = np.zeros(self.index.shape, np.float64)
         if len(self.bricks):
-            axes = tuple(range(1, self.bricks.ndim))
-            out[self.index >= 0] = reduce(self.bricks, axis=axes)[self.index[self.index >= 0]]
+            out[self.index >= 0] = self._per_brick(reduce)[self.index[self.index >= 0]]
         return out
 
     def shell_max(self) -> float:
@@ -107,9 +123,13 @@ class SparseGrid:
         return largest
 
     def map(self, function) -> SparseGrid:
-        """The grid with `function` applied to every stored voxel (function(0) must be 0)."""
-        mapped = np.ascontiguousarray(function(self.zero_led()), np.float32)  # function(0) = 0 keeps brick 0
-        return SparseGrid.from_zero_led(self.shape, self.index, mapped)
+        """The grid with `function` applied to every stored voxel (function(0) must be 0,
+        which keeps brick 0 and the empty bricks zero), a chunk of bricks at a time."""
+        storage = BrickStore(None)
+        source = self.zero_led()
+        for first in range(0, len(source), MAP_CHUNK):
+            storage.add(np.asarray(function(source[first:first + MAP_CHUNK]), np.float32))
+        return storage.grid(self.shape, self.index)
 
     def to_dense(self) -> np.ndarray:
         """The (nz, ny, nx[, 3]) array (for tests and small grids)."""
@@ -136,6 +156,57 @@ def brick_views(slab: np.ndarray) -> np.ndarray:
     return as_strided(slab, shape, strides, writeable=False)
 
 
+MAP_CHUNK = 1024  # bricks per chunk of SparseGrid.map (3 MB of scalar bricks; its float64 temporaries)
+
+
+class BrickStore:
+    """A zero-led brick array under construction (see SparseGrid.zero_led), appended to a
+    block of bricks at a time, and every brick's least and largest value. It stays in this
+    process's memory until it passes mapped.MIN_BYTES, then goes to a mapped file."""
+
+    def __init__(self, tail: tuple[int, ...] | None) -> None:
+        """tail: () for scalar bricks, (c,) for c channels; None takes the first block's."""
+        self.tail = tail
+        self.parts: list[np.ndarray] = []
+        self.lows: list[np.ndarray] = []
+        self.highs: list[np.ndarray] = []
+        self.held = 0
+        self.writer: FileWriter | None = None
+        if tail is not None:
+            self.add(np.zeros((1, SPAN, SPAN, SPAN) + tail, np.float32))
+
+    def add(self, blocks: np.ndarray) -> None:
+        """Append (n, SPAN, SPAN, SPAN[, c]) float32 bricks (the first call: brick 0, all zero)."""
+        blocks = np.ascontiguousarray(blocks, np.float32)
+        if self.tail is None:
+            self.tail = blocks.shape[4:]
+        axes = tuple(range(1, blocks.ndim))
+        self.lows.append(blocks.min(axis=axes) if len(blocks) else np.zeros(0, np.float32))
+        self.highs.append(blocks.max(axis=axes) if len(blocks) else np.zeros(0, np.float32))
+        if self.writer is None and self.held + blocks.nbytes >= MIN_BYTES:
+            self.writer = FileWriter()
+            for part in self.parts:
+                self.writer.write(part)
+            self.parts.clear()
+        if self.writer is not None:
+            self.writer.write(blocks)
+        else:
+            self.parts.append(blocks)
+        self.held += blocks.nbytes
+
+    def grid(self, shape: tuple[int, int, int], index: np.ndarray) -> SparseGrid:
+        """The SparseGrid over these bricks (brick 0 excluded from its `bricks`)."""
+        count = sum(len(low) for low in self.lows)
+        full = (count, SPAN, SPAN, SPAN) + tuple(self.tail or ())
+        if self.writer is not None:
+            storage = self.writer.array(full)
+        else:
+            storage = np.concatenate(self.parts) if self.parts else np.zeros(full, np.float32)
+        bounds = np.stack([np.concatenate(self.lows)[1:], np.concatenate(self.highs)[1:]]).astype(np.float32)
+        self.parts, self.writer = [], None
+        return SparseGrid.from_zero_led(shape, index, storage, bounds)
+
+
 class BrickBuilder:
     """Builds SparseGrids that share one brick index, one z-row of bricks at a time, so a
     grid is never held dense: memory is one row's slab plus the occupied bricks.
@@ -148,7 +219,7 @@ class BrickBuilder:
         self.shape = tuple(int(n) for n in shape)
         self.channels = dict(channels)
         self.index = np.full(lattice_shape(self.shape), -1, np.int32)
-        self.parts: dict[str, list[np.ndarray]] = {name: [] for name in channels}
+        self.stores = {name: BrickStore(() if c == 1 else (c,)) for name, c in self.channels.items()}
         self.count = 0
 
     def slab_shape(self, name: str) -> tuple[int, ...]:
@@ -172,23 +243,12 @@ class BrickBuilder:
         self.count += found
         for name, view in views.items():
             if found:
-                self.parts[name].append(np.ascontiguousarray(view[where], np.float32))
+                self.stores[name].add(view[where])
 
     def finish(self) -> dict[str, SparseGrid]:
-        """The grids, each in one zero-led array (SparseGrid.zero_led). Each row's bricks are
-        freed once copied in, so the peak is the grids plus one row, not twice the grids."""
-        grids = {}
-        for name, parts in self.parts.items():
-            tail = () if self.channels[name] == 1 else (self.channels[name],)
-            storage = np.zeros((self.count + 1, SPAN, SPAN, SPAN) + tail, np.float32)
-            at = 1
-            while parts:
-                part = parts.pop(0)
-                storage[at:at + len(part)] = part
-                at += len(part)
-                del part
-            grids[name] = SparseGrid.from_zero_led(self.shape, self.index, storage)
-        return grids
+        """The grids, each in one zero-led array (SparseGrid.zero_led): a large one in a
+        mapped file written row by row, so the grids are never held twice."""
+        return {name: store.grid(self.shape, self.index) for name, store in self.stores.items()}
 
 
 def dense_slab(values: np.ndarray, bk: int, slab_shape: tuple[int, ...]) -> np.ndarray:

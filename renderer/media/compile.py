@@ -13,6 +13,7 @@ import math
 
 import numpy as np
 
+from renderer.mapped import concatenate
 from renderer.media.blackbody import blackbody_emission_voxels
 from renderer.media.bricks import BRICK, SPAN, SparseGrid
 from renderer.media.layout import (
@@ -134,7 +135,7 @@ class _ArrayStore:
         shared with the scene's SparseGrid, not held twice)."""
         if len(self.grids) == 1:
             return self.grids[0]
-        data = np.concatenate(self.grids) if self.grids else np.zeros(1, np.float32)
+        data = concatenate(self.grids) if self.grids else np.zeros(1, np.float32)  # large: a mapped file
         return np.ascontiguousarray(data, np.float32)
 
     def maj_data(self) -> np.ndarray:
