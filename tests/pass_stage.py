@@ -1,6 +1,13 @@
-"""Analytic geometry of tests/test_addon_passes.py's stage, seen by its camera: which
-pixels see the fog cube's silhouette or the glass ball, and the exact mean transmittance
-through the fog cube of every pixel (numpy only, no renderer).
+"""The stage of the pass tests (tests/test_addon_passes.py, test_addon_volume_passes.py,
+test_addon_light_passes.py), in three parts:
+
+* Blender side (imported by their Blender scripts; bpy is imported inside the functions, so
+  pytest can import this module without Blender): `build_stage` (floor, wall, fog cube, sun,
+  sky and camera, and the two balls), `write_multilayer`.
+* Host side: `read_passes` of the multilayer EXRs they write.
+* The stage's analytic geometry seen by its camera: which pixels see the fog cube's
+  silhouette or the glass ball, and the exact mean transmittance through the fog cube of
+  every pixel (numpy only, no renderer).
 
 Camera: at (0, -4.5, 1.6), rotated 75 degrees about X, 35 mm lens on a 36 mm sensor fitted
 horizontally, box pixel filter of width 1. Row 0 of every image is the top row.
@@ -9,6 +16,7 @@ horizontally, box pixel filter of width 1. Row 0 of every image is the top row.
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 
@@ -19,6 +27,67 @@ FOG_LOW, FOG_HIGH = np.array([0.9, 0.7, 0.1]), np.array([1.9, 1.7, 1.1])  # C.bo
 FOG_SIGMA_T = 0.9  # Volume Scatter: colour 0.9 x density 1; no absorption
 GLASS_CENTER, GLASS_RADIUS = np.array([0.3, -0.5, 0.45]), 0.45
 WALL_Y, WALL_TOP = 2.0, 1.5
+
+
+def build_stage(size: tuple[int, int], balls: bool = True):
+    """Blender side: a cleared scene holding the stage (Combined composited off): a grey sky,
+    a diffuse floor and wall, the cube of fog (optical depth 1 across, floating above the
+    floor: a face coplanar with the floor would make the order of the two hits arbitrary),
+    the sun and the camera; with `balls`, a diffuse ball and the clear glass ball too."""
+    import blender_cornell as C
+    import bpy_helpers as H
+
+    scene = C.clear_scene()
+    scene.render.use_compositing = False
+    H.world_color(scene, (0.4, 0.45, 0.5), 1.0)
+    H.floor_plane("Floor", 4.0, C.diffuse_material("Floor", (0.7, 0.7, 0.7)))
+    H.new_object("Wall", [(-4, 2.0, 0), (4, 2.0, 0), (4, 2.0, 1.5), (-4, 2.0, 1.5)], [(0, 1, 2, 3)],
+                 C.diffuse_material("Wall", (0.6, 0.5, 0.4)))  # WALL_Y, WALL_TOP
+    if balls:
+        H.uv_sphere("Ball", (-1.0, 0.0, 0.5), 0.5, C.diffuse_material("Ball", (0.2, 0.5, 0.8)))
+        material, tree, output = C.node_material("Glass")
+        node = tree.nodes.new("ShaderNodeBsdfGlass")
+        node.inputs["Roughness"].default_value = 0.0
+        tree.links.new(node.outputs["BSDF"], output.inputs["Surface"])
+        H.uv_sphere("Glass", (0.3, -0.5, 0.45), 0.45, material)  # GLASS_CENTER, GLASS_RADIUS
+    C.box("Fog", (1.4, 1.2, 0.6), 0.5, C.fog_material("Fog", 1.0, 0.0, 0.0))  # FOG_LOW .. FOG_HIGH
+    H.add_light("SUN", "Sun", (0.0, 0.0, 5.0), (40.0, 0.0, 30.0), energy=2.0, angle=math.radians(5.0))
+    C.add_camera(scene, (0.0, -4.5, 1.6), (75.0, 0.0, 0.0), lens=35.0)  # CAMERA, TILT, LENS
+    scene.render.resolution_x, scene.render.resolution_y = size
+    scene.render.resolution_percentage = 100
+    return scene
+
+
+def write_multilayer(scene, path: str) -> str:
+    """Blender side: render `scene` into a 32-bit multilayer EXR at `path`; returns the path."""
+    import bpy
+
+    settings = scene.render.image_settings
+    settings.media_type = "MULTI_LAYER_IMAGE"
+    settings.file_format = "OPEN_EXR_MULTILAYER"
+    settings.color_depth = "32"
+    settings.exr_codec = "ZIP"
+    scene.render.filepath = path
+    bpy.ops.render.render(write_still=True)
+    return path
+
+
+def read_passes(path: str | Path) -> dict[str, np.ndarray]:
+    """Pass name -> (H, W, C) float64 (row 0 at the top) of a multilayer EXR from Blender."""
+    import OpenEXR
+
+    channels: dict[str, dict[str, np.ndarray]] = {}
+    for part in OpenEXR.File(str(path), separate_channels=True).parts:
+        for name, channel in part.channels.items():
+            _, pass_name, letter = name.split(".")
+            channels.setdefault(pass_name, {})[letter] = channel.pixels
+    out = {}
+    for pass_name, letters in channels.items():
+        order = [c for c in ("R", "G", "B", "A", "X", "Y", "Z") if c in letters]
+        if set(letters) == {"X", "Y", "Z"}:
+            order = ["X", "Y", "Z"]
+        out[pass_name] = np.stack([letters[c] for c in order], axis=-1).astype(np.float64)
+    return out
 
 
 def pixel_rays(size: tuple[int, int], n: int, tilt: float = TILT) -> np.ndarray:

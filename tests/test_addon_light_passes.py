@@ -24,8 +24,7 @@ import numpy as np
 import pytest
 from block_stats import PRECISION, block_tests, worst
 from bpy_helpers import run_blender, shared_numba_cache
-from pass_stage import dilate, hits_sphere, pixel_rays
-from test_addon_passes import read_passes
+from pass_stage import dilate, hits_sphere, pixel_rays, read_passes
 
 pytestmark = [pytest.mark.bpy, pytest.mark.slow]
 
@@ -57,6 +56,7 @@ import os
 import bpy
 import bpy_helpers as H
 import blender_cornell as C
+import pass_stage as S
 
 SIZE = {SIZE!r}
 SAMPLES = {SAMPLES}
@@ -101,17 +101,6 @@ def stage():
     return scene
 
 
-def multilayer(scene, path):
-    settings = scene.render.image_settings
-    settings.media_type = "MULTI_LAYER_IMAGE"
-    settings.file_format = "OPEN_EXR_MULTILAYER"
-    settings.color_depth = "32"
-    settings.exr_codec = "ZIP"
-    scene.render.filepath = path
-    bpy.ops.render.render(write_still=True)
-    return path
-
-
 def passes(view_layer, on):
     view_layer.use_pass_diffuse_color = view_layer.use_pass_glossy_color = view_layer.use_pass_emit = on
     view_layer.use_pass_transmission_color = on
@@ -125,11 +114,11 @@ def main():
     out = {{"cycles": [], "haze": []}}
     for run in range(RUNS):
         H.configure_cycles(scene, SAMPLES, 3, seed=run + 1)
-        out["cycles"].append(multilayer(scene, os.path.join(os.getcwd(), f"cycles_{{run}}.exr")))
+        out["cycles"].append(S.write_multilayer(scene, os.path.join(os.getcwd(), f"cycles_{{run}}.exr")))
         H.configure_haze(scene, SAMPLES, 3, seed=run + 1)
-        out["haze"].append(multilayer(scene, os.path.join(os.getcwd(), f"haze_{{run}}.exr")))
+        out["haze"].append(S.write_multilayer(scene, os.path.join(os.getcwd(), f"haze_{{run}}.exr")))
     passes(view_layer, False)
-    out["plain"] = multilayer(scene, os.path.join(os.getcwd(), "plain.exr"))
+    out["plain"] = S.write_multilayer(scene, os.path.join(os.getcwd(), "plain.exr"))
     return out
 '''
 

@@ -27,8 +27,7 @@ import numpy as np
 import pytest
 from block_stats import block_tests, t_quantile, worst
 from bpy_helpers import run_blender, shared_numba_cache
-from pass_stage import fog_length, pixel_rays
-from test_addon_passes import read_passes
+from pass_stage import fog_length, pixel_rays, read_passes
 
 pytestmark = [pytest.mark.bpy, pytest.mark.slow]
 
@@ -39,46 +38,18 @@ VOLUME = ("Volume Direct", "Volume Indirect")
 SURFACE = ("Diffuse", "Glossy", "Transmission")
 
 BODY = rf'''
-import math
 import os
-import bpy
 import bpy_helpers as H
-import blender_cornell as C
+import pass_stage as S
 
 SIZE = {SIZE!r}
 SAMPLES = {SAMPLES}
 RUNS = {RUNS}
 
 
-def stage():
-    scene = C.clear_scene()
-    scene.render.use_compositing = False
-    H.world_color(scene, (0.4, 0.45, 0.5), 1.0)
-    H.floor_plane("Floor", 4.0, C.diffuse_material("Floor", (0.7, 0.7, 0.7)))
-    H.new_object("Wall", [(-4, 2.0, 0), (4, 2.0, 0), (4, 2.0, 1.5), (-4, 2.0, 1.5)], [(0, 1, 2, 3)],
-                 C.diffuse_material("Wall", (0.6, 0.5, 0.4)))
-    C.box("Fog", (1.4, 1.2, 0.6), 0.5, C.fog_material("Fog", 1.0, 0.0, 0.0))
-    H.add_light("SUN", "Sun", (0.0, 0.0, 5.0), (40.0, 0.0, 30.0), energy=2.0, angle=math.radians(5.0))
-    C.add_camera(scene, (0.0, -4.5, 1.6), (75.0, 0.0, 0.0), lens=35.0)
-    scene.render.resolution_x, scene.render.resolution_y = SIZE
-    scene.render.resolution_percentage = 100
-    return scene
-
-
-def multilayer(scene, path):
-    settings = scene.render.image_settings
-    settings.media_type = "MULTI_LAYER_IMAGE"
-    settings.file_format = "OPEN_EXR_MULTILAYER"
-    settings.color_depth = "32"
-    settings.exr_codec = "ZIP"
-    scene.render.filepath = path
-    bpy.ops.render.render(write_still=True)
-    return path
-
-
 def main():
     H.enable_dev_addon()
-    scene = stage()
+    scene = S.build_stage(SIZE, balls=False)
     view_layer = scene.view_layers[0]
     view_layer.cycles.use_pass_volume_direct = view_layer.cycles.use_pass_volume_indirect = True
     view_layer.use_pass_emit = view_layer.use_pass_environment = True
@@ -88,9 +59,9 @@ def main():
     out = {{"cycles": [], "haze": []}}
     for run in range(RUNS):
         H.configure_cycles(scene, SAMPLES, 3, seed=run + 1)
-        out["cycles"].append(multilayer(scene, os.path.join(os.getcwd(), f"cycles_{{run}}.exr")))
+        out["cycles"].append(S.write_multilayer(scene, os.path.join(os.getcwd(), f"cycles_{{run}}.exr")))
         H.configure_haze(scene, SAMPLES, 3, seed=run + 1)
-        out["haze"].append(multilayer(scene, os.path.join(os.getcwd(), f"haze_{{run}}.exr")))
+        out["haze"].append(S.write_multilayer(scene, os.path.join(os.getcwd(), f"haze_{{run}}.exr")))
     return out
 '''
 

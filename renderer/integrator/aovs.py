@@ -15,7 +15,8 @@ denoising_passes.h in the bpy 5.0 source):
   of the selection weight is specular-like, the normal (selection-weighted mean, facing the
   ray) and albedo = feature throughput x diffuse-like albedo are written and the features
   are done; otherwise the feature throughput is multiplied by the specular-like albedo and
-  the path looks further. Emission or background found before that adds
+  the path looks further (a glass's albedo is Cycles' estimate, _dielectric_albedo: below 1
+  seen from inside near total internal reflection). Emission or background found before that adds
   feature throughput x radiance x MIS weight to the albedo (Cycles' light_passes.h), and the
   background ends the features.
 * Light passes by category (Cycles' light_passes.h): a path's first scattering event sets
@@ -24,8 +25,9 @@ denoising_passes.h in the bpy 5.0 source):
   next-event ray, or emission the path found right after it, at depth 1) and to its
   Indirect pass otherwise. Only the volume's category is written (Volume Direct and
   Indirect); a shadow ray carries its column (Shadows.col) from where it was emitted.
-Lobe albedos are the lobe's weight x colour (Cycles' bsdf_albedo also folds in Fresnel for
-microfacet lobes; Haze's plastic and rough conductor are not corrected for it).
+Lobe albedos are the lobe's weight x colour, except a glass's, which is Cycles' estimate
+(_dielectric_albedo). (Cycles' bsdf_albedo also folds in Fresnel for the other microfacet
+lobes; Haze's plastic and conductors are not corrected for it.)
 """
 
 import math
@@ -41,7 +43,7 @@ from ..bsdfs import (
     TRANSPARENT,
 )
 from ..bsdfs.fresnel import fresnel_dielectric
-from ..bsdfs.layout import L_COLOR, L_IOR, L_KIND, L_ROUGH, L_SIDES, L_WEIGHT, M_COUNT, M_FIRST
+from ..bsdfs.layout import L_COLOR, L_IOR, L_KIND, L_ROUGH, L_SIDES, L_TINT, L_WEIGHT, M_COUNT, M_FIRST
 from ..bsdfs.material import _lobe_selection
 from ..bsdfs.spec_albedo import spec_albedo
 from ..camera import ORTHOGRAPHIC, PROJ_KIND
@@ -230,10 +232,33 @@ def mist_amount(cam, mist, x):
     return amount ** mist[2]
 
 
+@inline_kernel
+def _dielectric_albedo(lobes, j, front, mu):
+    """Cycles' bsdf_albedo of a glass closure seen at cosine mu (its estimate, closure/
+    bsdf_microfacet.h bsdf_microfacet_estimate_albedo): the reflectance read from the
+    tabulated outside Fresnel curve (ggx_gen_schlick_ior_s, which cannot tell eta from 1/eta:
+    seen from inside it ignores total internal reflection) x the reflection tint, plus the
+    exact transmittance 1 - F(mu, eta of this side) x the refraction tint, times the lobe's
+    weight. Seen from outside it is about 1 for a clear glass; from inside near and past the
+    critical angle it falls toward F0 (0.04 at IOR 1.5), and the denoising features of
+    paths through a glass ball's outline carry that loss."""
+    ior = float(lobes[j, L_IOR])
+    eta_up = ior if ior >= 1.0 else 1.0 / max(ior, 1e-6)
+    reflect = spec_albedo(mu, float(lobes[j, L_ROUGH]), eta_up)
+    transmit = 1.0 - fresnel_dielectric(mu, ior if front else 1.0 / max(ior, 1e-6))[0]
+    a0 = float(lobes[j, L_WEIGHT]) * (float(lobes[j, L_TINT]) * reflect + float(lobes[j, L_COLOR]) * transmit)
+    a1 = float(lobes[j, L_WEIGHT + 1]) * (float(lobes[j, L_TINT + 1]) * reflect
+                                         + float(lobes[j, L_COLOR + 1]) * transmit)
+    a2 = float(lobes[j, L_WEIGHT + 2]) * (float(lobes[j, L_TINT + 2]) * reflect
+                                         + float(lobes[j, L_COLOR + 2]) * transmit)
+    return a0, a1, a2
+
+
 @kernel
-def aov_surface(L, pid, mt, m, front, x, facing, depth, beta, cam, mist):
+def aov_surface(L, pid, mt, m, front, x, facing, mu, depth, beta, cam, mist):
     """The passes at a surface hit with lobes at point x, shading normal `facing` (turned
-    toward the incoming ray), after `depth` scattering events, path throughput beta."""
+    toward the incoming ray) at cosine mu to the ray, after `depth` scattering events, path
+    throughput beta."""
     mats, lobes = mt
     start = mats[m, M_FIRST]
     end = start + mats[m, M_COUNT]
@@ -253,9 +278,12 @@ def aov_surface(L, pid, mt, m, front, x, facing, depth, beta, cam, mist):
         diffuse_like = kind == DIFFUSE or kind == PLASTIC or (kind == ROUGH_CONDUCTOR and alpha > ROUGH_ALPHA)
         if kind == TRANSPARENT:
             transparent_w += sw
-        a0 = float(lobes[j, L_WEIGHT]) * float(lobes[j, L_COLOR])
-        a1 = float(lobes[j, L_WEIGHT + 1]) * float(lobes[j, L_COLOR + 1])
-        a2 = float(lobes[j, L_WEIGHT + 2]) * float(lobes[j, L_COLOR + 2])
+        if kind == DIELECTRIC:
+            a0, a1, a2 = _dielectric_albedo(lobes, j, front, mu)
+        else:
+            a0 = float(lobes[j, L_WEIGHT]) * float(lobes[j, L_COLOR])
+            a1 = float(lobes[j, L_WEIGHT + 1]) * float(lobes[j, L_COLOR + 1])
+            a2 = float(lobes[j, L_WEIGHT + 2]) * float(lobes[j, L_COLOR + 2])
         if diffuse_like:
             diffuse_w += sw
             d0, d1, d2 = d0 + a0, d1 + a1, d2 + a2

@@ -171,7 +171,8 @@ def shade_surface(n, ps, prim, bu, bv, geo, mt, override, program_out, lt, env_l
                 # A pure emitter (Cycles' Emission shader): black, opaque.
                 if aov_open:
                     sn = _shading_normal(geo, p, b0, b1, b2, ng)
-                    aov_surface(L, pid, mt, m, front, x, sn if front else neg(sn), depth, beta, cam, mist)
+                    facing = sn if front else neg(sn)
+                    aov_surface(L, pid, mt, m, front, x, facing, abs(dot(d, sn)), depth, beta, cam, mist)
                 ps.alive[i] = PATH_DEAD
                 continue
             # An invisible interface: cross it without scattering.
@@ -188,7 +189,8 @@ def shade_surface(n, ps, prim, bu, bv, geo, mt, override, program_out, lt, env_l
             if depth > max_bounces:
                 aov_past_limit(L, pid)
             else:
-                aov_surface(L, pid, mt, m, front, x, sn if front else neg(sn), depth, beta, cam, mist)
+                aov_surface(L, pid, mt, m, front, x, sn if front else neg(sn), abs(dot(d, sn)), depth, beta,
+                            cam, mist)
         if light_aovs and depth == 0:
             aov_colors(L, pid, mt, m, front, abs(dot(d, sn)), beta)
         if depth > max_bounces:

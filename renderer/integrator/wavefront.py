@@ -183,7 +183,7 @@ class Tracer:
             (bsdf_eval, (self.mt, m, True, v, v)),
             (bsdf_sample, (self.mt, m, True, v, 0.5, 0.5, 0.5, 0.5)),
             # Compiled into shade_surface with or without passes (L's type is the same).
-            (aov_surface, (self.L, m, self.mt, m, True, v, v, m, v, cs.camera, self.mist)),
+            (aov_surface, (self.L, m, self.mt, m, True, v, v, 0.5, m, v, cs.camera, self.mist)),
             (connect_light_env, (lt, cs.environment, light, v, v, 0.5, 0.5)),
             (triangle_light_pdf, (lt, tri, v, v, 1.0)),
             (escaped_radiance_env, (lt, light, cs.lights.sun_rows, cs.environment, v)),
