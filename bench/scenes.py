@@ -66,15 +66,19 @@ def _chromatic(size: int) -> Scene:
 
 
 BLEND_BOUNCES = 3
+MEDIA_BOUNCES = 16  # examples/blender_gallery's depth for its media scenes
 
 
-def _built_in_blender(name: str, description: str) -> BenchScene:
-    """examples/blender_gallery's scene `name`: Haze renders its export, Cycles the .blend."""
+def _built_in_blender(name: str, description: str, bounces: int = BLEND_BOUNCES,
+                      gallery: str | None = None) -> BenchScene:
+    """examples/blender_gallery's scene `gallery` (default `name`): Haze renders its export,
+    Cycles the .blend."""
     from .blend_scenes import blend_file, blend_scene
 
-    return BenchScene(name, lambda size: blend_scene(name, size, BLEND_BOUNCES), {"default": {}},
-                      f"{description}, max_bounces {BLEND_BOUNCES}",
-                      blend=lambda size: blend_file(name, size, BLEND_BOUNCES))
+    source = gallery or name
+    return BenchScene(name, lambda size: blend_scene(source, size, bounces), {"default": {}},
+                      f"{description}, max_bounces {bounces}",
+                      blend=lambda size: blend_file(source, size, bounces))
 
 
 NO_EQUIANGULAR = {"equiangular": False}
@@ -95,6 +99,12 @@ SCENES: dict[str, BenchScene] = {s.name: s for s in (
                       "wall, noise-marbled cube"),
     _built_in_blender("hdri", "floor, diffuse and rough metal balls under an HDRI with a 2x2-pixel sun, "
                       "built in Blender"),
+    # Issue 18's figure: the gallery's Volume objects as a user builds them (Principled Volume
+    # reading the grid), at the gallery's depth.
+    _built_in_blender("smoke_ball_blender", "Fig. 3 smoke ball as a Blender Volume object (Principled "
+                      "Volume, sigma_a 90, sigma_s 10) in the Cornell box", MEDIA_BOUNCES, "smoke_ball"),
+    _built_in_blender("fire_ball_blender", "Fig. 7 fire ball as a Blender Volume object (blackbody "
+                      "temperature and smoke grids) around a rough metal bust", MEDIA_BOUNCES, "fire_ball"),
 )}
 SETTING_NOTES = {
     "default": "ratio tracking, spectral MIS, majorant grid, equiangular (the defaults)",

@@ -331,6 +331,24 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
     return parser.parse_args(argv)
 
 
+def check_files() -> None:
+    """Raise if a Volume object's or an image's file cannot be read: Cycles would render the
+    scene without it (an empty volume, a pink texture), and the benchmark would compare
+    different scenes (a .blend copied without its relative //assets once made Cycles render
+    the smoke ball's Cornell box empty)."""
+    import bpy
+
+    for image in bpy.data.images:
+        if image.source in ("FILE", "SEQUENCE", "TILED") and image.packed_file is None \
+                and not Path(bpy.path.abspath(image.filepath)).is_file():
+            raise RuntimeError(f"Image '{image.name}': {bpy.path.abspath(image.filepath)} not found")
+    for volume in bpy.data.volumes:
+        volume.grids.load()
+        if not volume.grids.is_loaded or len(volume.grids) == 0:
+            raise RuntimeError(f"Volume '{volume.name}': {volume.grids.error_message or 'no grids'} "
+                               f"({bpy.path.abspath(volume.filepath)})")
+
+
 def main(argv: list[str]) -> int:
     isolate_blender()
     arguments = parse_arguments(argv)
@@ -339,6 +357,7 @@ def main(argv: list[str]) -> int:
 
         bpy.ops.wm.open_mainfile(filepath=str(arguments.scene))
         scene, bounces = bpy.context.scene, arguments.max_bounces
+        check_files()
     else:
         haze = load_scene(arguments.scene)
         scene, bounces = build_scene(haze), haze.integrator.max_bounces

@@ -5,7 +5,8 @@ One core, in this process, after a warm-up pass. Every kernel call from the batc
 and every Embree call is timed with the thread's CPU clock (time.thread_time), and each
 part's figure is the best of --repeats runs (this VM's one-core speed swings by up to 25%
 from run to run, so the minimum is the figure that repeats). Columns: ns per pixel sample
-and the share of the best run's total. Scenes: those of `python -m bench speed`.
+and the share of the best run's total. Scenes: those of `python -m bench speed` and of
+`python -m bench convergence` (bench/scenes.py: smoke_ball_blender, fire_ball_blender, ...).
 """
 
 from __future__ import annotations
@@ -20,6 +21,7 @@ REPO = Path(__file__).resolve().parents[1]
 if str(REPO) not in sys.path:
     sys.path.insert(0, str(REPO))
 
+from bench.scenes import SCENES  # noqa: E402
 from bench.speed import _scenes  # noqa: E402
 from renderer.compile import compile_scene  # noqa: E402
 from renderer.film import Film  # noqa: E402
@@ -63,7 +65,7 @@ def _time_embree(tracer: Tracer, spent: Counter) -> None:
 
 def profile(scene_name: str, size: int, spp: int, repeats: int) -> tuple[dict[str, float], float]:
     """(best seconds per part, best total seconds) over `repeats` renders of spp samples."""
-    scene = _scenes(size)[scene_name]
+    scene = _scenes(size)[scene_name] if scene_name in _scenes(8) else SCENES[scene_name].build(size)
     cs = compile_scene(scene)
     tracer = Tracer(cs, scene.integrator)
     tracer.trace(Film(cs.width, cs.height), 0, 1, 0)  # compile / warm up
@@ -89,7 +91,7 @@ def profile(scene_name: str, size: int, spp: int, repeats: int) -> tuple[dict[st
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("scene", nargs="?", default="cornell_fog_g0", choices=list(_scenes(8)))
+    parser.add_argument("scene", nargs="?", default="cornell_fog_g0", choices=[*_scenes(8), *SCENES])
     parser.add_argument("--size", type=int, default=128)
     parser.add_argument("--spp", type=int, default=16)
     parser.add_argument("--repeats", type=int, default=3)

@@ -4,6 +4,7 @@ Vectors are plain 3-tuples of floats inside kernels (numba keeps them in registe
 arrays crossing the Python boundary are contiguous float32/int32 structure-of-arrays.
 """
 
+import numpy as np
 from numba import njit
 from numba.core import sigutils
 from numba.core.registry import CPUDispatcher
@@ -40,10 +41,61 @@ JIT_OPTIONS = {"cache": True, "error_model": "numpy", "fastmath": {"contract"}, 
 # variables to a kernel, not literals.
 
 
+_SCALARS = (int, float, bool, type(None), np.integer, np.floating, np.bool_)
+
+
+def _arg_key(value) -> object:
+    """What decides an argument's numba type, cheaply: an array's class, dtype, dimensions,
+    layout and writability; a scalar's type; anything else (tuples of arrays, whose
+    elements' types count) the object itself, by identity (the key keeps it alive, so `is`
+    cannot meet a new object at a reused address)."""
+    if isinstance(value, np.ndarray):
+        flags = value.flags
+        return (type(value), value.dtype, value.ndim, flags.c_contiguous, flags.f_contiguous,
+                flags.writeable, flags.aligned)
+    if isinstance(value, _SCALARS):
+        return type(value)
+    return _Same(value)
+
+
+class _Same:
+    """Equal only to the same object (identity), for argument keys."""
+
+    __slots__ = ("value",)
+
+    def __init__(self, value) -> None:
+        self.value = value
+
+    def __eq__(self, other) -> bool:
+        return isinstance(other, _Same) and other.value is self.value
+
+    def __hash__(self) -> int:
+        return id(self.value)
+
+
 class Kernel(CPUDispatcher):
     """A numba function that compiles under its own inter-process lock (cache.function_lock):
     of two processes needing it on a cold cache, one compiles and saves it, the other waits
-    and loads it."""
+    and loads it.
+
+    A call from Python reuses the compiled entry point of its previous call when every
+    argument has the same key (_arg_key): numba resolves the types of tuple arguments
+    (the driver's structures of arrays: Geometry, Shadows, the media table) in Python on
+    every call, about 0.1-0.4 ms each, which the driver's many small per-bounce calls on the
+    last paths of a batch paid over and over (10% of a smoke ball render's time).
+    """
+
+    def __call__(self, *args):
+        memo = self.__dict__.get("_last_call")
+        keys = tuple(_arg_key(a) for a in args)
+        if memo is not None and memo[0] == keys:
+            return memo[1](*args)
+        result = super().__call__(*args)
+        types = tuple(self.typeof_pyval(a) for a in args)
+        compiled = self.overloads.get(types)
+        if compiled is not None:
+            self.__dict__["_last_call"] = (keys, compiled.entry_point)
+        return result
 
     def compile(self, sig):
         args, _ = sigutils.normalize_signature(sig)
