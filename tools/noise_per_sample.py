@@ -2,7 +2,7 @@
 
     python tools/noise_per_sample.py [scene] [--runs 16] [--spp 16,64] [--size 64]
 
-Renders `runs` independent images (seeds 100, 101, ...) per sample count in this process and
+Renders `runs` independent images (seeds --seed, --seed + 1, ...) per sample count in this process and
 prints relMSE x spp, where relMSE is the variance across the runs per pixel over the runs'
 mean squared (+ 1e-2), the measure tests/test_addon_hdri.py prints for Haze and Cycles; and
 the ratio to it of: Film.rel_mse_estimate (what --target-error stops on), the per-pixel
@@ -33,6 +33,7 @@ def main() -> None:
     parser.add_argument("--runs", type=int, default=16)
     parser.add_argument("--spp", default="16,64")
     parser.add_argument("--size", type=int, default=64)
+    parser.add_argument("--seed", type=int, default=100, help="of the first run")
     args = parser.parse_args()
     scene = SCENES[args.scene].build(args.size)
     tracer = Tracer(compile_scene(scene), scene.integrator)
@@ -41,7 +42,7 @@ def main() -> None:
         films = []
         for run in range(args.runs):
             film = Film(args.size, args.size)
-            tracer.trace(film, 0, spp, 100 + run)
+            tracer.trace(film, 0, spp, args.seed + run)
             films.append(film)
         seconds = (time.perf_counter() - start) / args.runs
         images = np.array([f.mean() for f in films])
