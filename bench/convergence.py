@@ -148,7 +148,9 @@ def _load_film(path: Path, width: int, height: int) -> tuple[Film, dict]:
     if not path.is_file():
         return film, {"seconds": 0.0, "seeds": []}
     data = np.load(path)
-    film.sum, film.sq, film.n = data["sum"], data["sq"], data["n"]
+    if "odd" not in data:  # cached before films kept their odd samples' sum: rendered again
+        return film, {"seconds": 0.0, "seeds": []}
+    film.sum, film.sq, film.n, film.odd = data["sum"], data["sq"], data["n"], data["odd"]
     return film, json.loads(str(data["meta"]))
 
 
@@ -178,7 +180,7 @@ def haze_reference(scene: Scene, folder: Path, target: float, time_cap: float, w
         film.add(last.film)
         meta["seconds"] += last.elapsed
         meta["seeds"].append(job.integrator.seed)
-        np.savez(path, sum=film.sum, sq=film.sq, n=film.n, meta=json.dumps(meta))
+        np.savez(path, sum=film.sum, sq=film.sq, n=film.n, odd=film.odd, meta=json.dumps(meta))
     return film_reference(film, meta["seconds"])
 
 

@@ -41,7 +41,9 @@ class Reference:
 
 def film_reference(film: Film, seconds: float) -> Reference:
     shape = (film.height, film.width, 3)
-    return Reference(film.mean().reshape(shape), film.variance_of_mean().reshape(shape), film.spp, seconds)
+    # The split estimate: unbiased with stratified samples, and these are means over pixels.
+    variance = film.split_variance_of_mean().reshape(shape)
+    return Reference(film.mean().reshape(shape), variance, film.spp, seconds)
 
 
 def stack_reference(images: np.ndarray, spp: int, seconds: float) -> Reference:

@@ -2,9 +2,11 @@
 their alpha, over the rendered window or a tile of it (a band of whole rows,
 renderer.units).
 
-Keeping the second moment lets callers estimate the error of the current image while it
-renders (the variance of each pixel's mean), and films of disjoint sample ranges merge by
-addition, so workers can render anywhere.
+Films of disjoint sample ranges merge by addition, so workers can render anywhere. The
+error of the current image is estimated while it renders from the sum of a pixel's odd
+samples beside the sum of all: the two halves are independent estimates of the pixel
+(kernels.rng.SAMPLE_HALVES), while its samples, stratified, are not independent of each
+other, so the second moment (kept for the variance of independent samples) overstates it.
 """
 
 from __future__ import annotations
@@ -28,6 +30,7 @@ class Film:
         self.sum = np.zeros((p, 3), np.float64)  # per pixel and channel
         self.sq = np.zeros((p, 3), np.float64)
         self.n = np.zeros(p, np.int64)  # samples per pixel
+        self.odd = np.zeros((p, 4), np.float64)  # the odd samples' sum (0-2) and count (3)
         self.alpha = np.zeros(p, np.float64)  # sum of the samples' alpha (1 unless Film > Transparent)
         self.nonfinite = np.zeros(1, np.int64)  # path values that were NaN or inf (added as 0)
         # Sums of the render passes' columns (integrator.paths AOV_*), only once a tracer with
@@ -49,6 +52,7 @@ class Film:
         self.sum[at] += other.sum
         self.sq[at] += other.sq
         self.n[at] += other.n
+        self.odd[at] += other.odd
         self.alpha[at] += other.alpha
         self.nonfinite += other.nonfinite
         if other.aov is not None:
@@ -72,7 +76,11 @@ class Film:
         return mean.reshape(self.height, self.width).astype(np.float32)
 
     def variance_of_mean(self) -> np.ndarray:
-        """(P, 3) unbiased estimate of each pixel mean's variance (nan where n < 2)."""
+        """(P, 3) estimate of each pixel mean's variance from the samples' second moment
+        (nan where n < 2): unbiased for independent samples, too high (never too low) for
+        stratified ones (kernels.rng.STRATIFIED_DIMS), by up to 2x and more where
+        stratification helps most. What a z-score per pixel needs (many degrees of
+        freedom); split_variance_of_mean is unbiased but has one."""
         n = self.n[:, None].astype(np.float64)
         mean = self.sum / np.maximum(n, 1)
         var = (self.sq - n * mean * mean) / np.maximum(n - 1, 1)
@@ -80,10 +88,27 @@ class Film:
         out[self.n < 2] = np.nan
         return out
 
+    def split_variance_of_mean(self) -> np.ndarray:
+        """(P, 3) unbiased estimate of each pixel mean's variance from its two independent
+        halves (kernels.rng.SAMPLE_HALVES), nan where a half is empty. With n0 even and n1
+        odd samples of means m0 and m1 (each of variance ~ c / n_h), the mean's variance
+        c / n is estimated by (m0 - m1)^2 n0 n1 / n^2: one degree of freedom per pixel,
+        so it is for means over many pixels (Film.rel_mse_estimate, bench.metrics)."""
+        n1 = self.odd[:, 3:4]
+        n = self.n[:, None].astype(np.float64)
+        n0 = n - n1
+        m1 = self.odd[:, :3] / np.maximum(n1, 1)
+        m0 = (self.sum - self.odd[:, :3]) / np.maximum(n0, 1)
+        out = (m0 - m1) ** 2 * n0 * n1 / np.maximum(n * n, 1)
+        out[(n0[:, 0] < 1) | (n1[:, 0] < 1)] = np.nan
+        return out
+
     def rel_mse_estimate(self) -> float:
         """Expected relMSE of the current image against the converged one, from the
-        per-pixel variance: mean(var(mean) / (level^2 + REL_EPS)), where a pixel's level is
-        the smaller of its mean and the mean of its 5x5 neighbourhood.
+        per-pixel variance of the mean (split_variance_of_mean, from the two independent
+        halves of the pixel's samples: unbiased with stratified samples, where the second
+        moment overstated it by more than 2x): mean(var(mean) / (level^2 + REL_EPS)), where
+        a pixel's level is the smaller of its mean and the mean of its 5x5 neighbourhood.
 
         With the pixel's own mean as the level (the textbook form), a firefly raises a
         pixel's variance and its mean together, so its term stays below ~1 however wrong
@@ -96,13 +121,15 @@ class Film:
         shape = (self.height, self.width, 3)
         m = self.mean().reshape(shape)
         level = np.minimum(m, box_mean(m, 2))
-        return float(np.mean(self.variance_of_mean().reshape(shape) / (level * level + REL_EPS)))
+        return float(np.mean(self.split_variance_of_mean().reshape(shape) / (level * level + REL_EPS)))
 
 
 @kernel
-def splat(n, L, pixel_of_pid, film_sum, film_sq, film_n, film_nonfinite, film_alpha, film_aov):
+def splat(n, L, pixel_of_pid, half_of_pid, film_sum, film_sq, film_n, film_odd, film_nonfinite, film_alpha,
+          film_aov):
     """Add paths 0..n-1 of a batch (radiance L[pid, :3], pixel pixel_of_pid[pid]) to a
-    Film's arrays: per-pixel sum, sum of squares, count, and alpha = 1 - the path's
+    Film's arrays: per-pixel sum, sum of squares, count, the odd samples' sum and count
+    (film_odd (P, 4): sum in columns 0-2, count in 3; half_of_pid[pid] 1 for odd), and alpha = 1 - the path's
     transparency L[pid, 3] (see integrator.paths.ALPHA). A non-finite path value (a bug, never
     expected) is counted and added as 0, so one bad path cannot ruin an image but cannot
     pass unnoticed either. film_aov (P, AOV_COUNT) gets the passes' columns L[pid, AOV_FIRST:],
@@ -118,7 +145,10 @@ def splat(n, L, pixel_of_pid, film_sum, film_sq, film_n, film_nonfinite, film_al
                 v = 0.0
             film_sum[px, c] += v
             film_sq[px, c] += v * v
+            if half_of_pid[i]:
+                film_odd[px, c] += v
         film_n[px] += 1
+        film_odd[px, 3] += half_of_pid[i]
         film_alpha[px] += 1.0 - L[i, 3]
         if aovs:
             for c in range(AOV_COUNT):

@@ -12,9 +12,10 @@ from renderer.errors import SceneError
 from renderer.scene import Film
 from renderer.units import UNIT_PATHS, tile_rows
 
-# Bytes per pixel a render holds: the film's sums, squares and counts (2 * 24 + 8), and
-# per progress update the float32 image with the float64 mean and variance behind it.
-FILM_BYTES_PER_PIXEL = 56
+# Bytes per pixel a render holds: the film's sums, squares, counts, alpha and odd samples'
+# sum and count (2 * 24 + 8 + 8 + 32), and per progress update the float32 image with the float64 mean
+# and variance behind it.
+FILM_BYTES_PER_PIXEL = 96
 PROGRESS_BYTES_PER_PIXEL = 12 + 24 + 24
 # Each worker process fills its own film, and the parent holds it again while merging: one
 # unit's film, the size of a tile (the whole image unless it is larger than UNIT_PATHS pixels).

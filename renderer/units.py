@@ -31,8 +31,8 @@ if TYPE_CHECKING:  # the film and the tracer load numba: planning units (rendere
 # UNIT_PATHS pixels where a row allows (a 3840x2160 frame: 64 bands of 34 rows, 130560
 # pixels; a row is the least), of one height but for a shorter last; a unit is one tile
 # for 1 sample per pixel (more only while a tile stays under UNIT_PATHS paths). A tile's
-# film (64 bytes a pixel) is what a worker sends back: 8 MB for a 4K band, against 530 MB
-# for a whole-frame unit. Whole rows, not squares: a band is a contiguous range of the
+# film (96 bytes a pixel) is what a worker sends back: 12.5 MB for a 4K band, against 800
+# MB for a whole-frame unit. Whole rows, not squares: a band is a contiguous range of the
 # window's pixels, so the tracer's linear sample index needs only an offset and a tile's
 # film merges as one slice (squares might trace camera rays a little more coherently; not
 # measured). Units go pass by pass (a sample range), tile by tile within a pass.

@@ -11,9 +11,11 @@ are checked pixel by pixel as well as the lighting.
 It also prints each renderer's noise per sample, relMSE x spp (relMSE estimated from the
 spread of the K renders per pixel), and the seconds each took, for the README's figures;
 it asserts nothing about them. Measured (2-core VM, loaded): Haze 0.42, Cycles 0.090 per
-sample (Cycles' quasi-Monte Carlo sequences stratify the sun-or-sky choice of every pixel's
-samples, Haze's random numbers do not), while Haze's 4 x 128 spp took 11 s and Cycles' 4 x
-32 spp 29 s: per second of rendering Haze's relMSE is about 2.2 times lower.
+sample with hashed random numbers and an environment density constant per map pixel;
+with the first bounce stratified (renderer.kernels.rng) and k x k cells per pixel of this
+256-column map (renderer.lights.environment_map), Haze 0.123 against Cycles 0.090
+(equirectangular) and 0.334 against 0.183 (mirror ball). Haze's 4 x 128 spp took 11 s and
+Cycles' 4 x 32 spp 29 s before those changes.
 """
 
 from __future__ import annotations

@@ -18,8 +18,18 @@ from renderer.compile import compile_scene
 from renderer.errors import SceneError
 from renderer.lights.environment import environment_radiance, sample_environment
 from renderer.lights.environment_lookup import lookup, mirror_ball_uv, uv_to_direction
-from renderer.lights.environment_map import build_environment
-from renderer.scene import Camera, Environment, IntegratorSettings, Lobe, Material, Mesh, Scene
+from renderer.lights.environment_map import MAP_COLUMNS, _pixel_density, build_environment
+from renderer.scene import (
+    ENV_INTERPOLATIONS,
+    LUMINANCE,
+    Camera,
+    Environment,
+    IntegratorSettings,
+    Lobe,
+    Material,
+    Mesh,
+    Scene,
+)
 from renderer.scene import Film as FilmSettings
 from renderer.scenefile import load_scene, save_scene
 from renderer.validate import validate_scene
@@ -125,9 +135,12 @@ def test_linear_and_closest_reads_hit_pixel_values_at_centres():
 
 def test_pdf_integrates_to_one_and_samples_follow_it():
     env = build_environment(Environment((1.0, 1.0, 1.0), sky_map(), to_world=rotation_z(30.0)))
-    # The pdf times sin theta is constant on each pixel: a midpoint rule on a 4x finer grid is exact.
-    _, pdf, sin_t, _ = _radiance_grid(env, 4 * H, 4 * W)
-    integral = (pdf * sin_t).sum() * (2 * math.pi / (4 * W)) * (math.pi / (4 * H))
+    # The pdf times sin theta is constant on each cell of the distribution (k x k per pixel
+    # of this small map): the midpoint rule on the cells is exact.
+    rows, cols = env[1].shape
+    assert (rows, cols) == (H * MAP_COLUMNS // W, MAP_COLUMNS)
+    _, pdf, sin_t, _ = _radiance_grid(env, rows, cols)
+    integral = (pdf * sin_t).sum() * (2 * math.pi / cols) * (math.pi / rows)
     assert abs(integral - 1.0) < 1e-6, integral
 
     n = 400_000
@@ -143,7 +156,8 @@ def test_pdf_integrates_to_one_and_samples_follow_it():
     v = 1.0 - np.arccos(np.clip(local[:, 2], -1, 1)) / math.pi
     cell = np.clip((v * H).astype(int), 0, H - 1) * W + np.clip((u * W).astype(int), 0, W - 1) % W
     counts = np.bincount(cell, minlength=H * W)
-    expected = n * env[1].ravel() / env[1].sum()
+    per_pixel = env[1].reshape(H, rows // H, W, cols // W).sum(axis=(1, 3))
+    expected = n * per_pixel.ravel() / per_pixel.sum()
     big = expected >= 10
     observed = np.append(counts[big], counts[~big].sum())
     wanted = np.append(expected[big], expected[~big].sum())
@@ -153,6 +167,39 @@ def test_pdf_integrates_to_one_and_samples_follow_it():
     assert z < Z, (chi2, dof)
     # The one-pixel sun holds most of the power and gets most of the samples.
     assert counts[SUN[0] * W + SUN[1]] > 0.3 * n
+
+
+def test_small_maps_are_sampled_on_cells_that_follow_linear_interpolation():
+    """A map narrower than MAP_COLUMNS / 2 gets k x k cells per pixel (Cycles samples its
+    background on a 1024-column map): each cell's density is the mean of the bilinear
+    luminance over it (checked by a 40 x 40 midpoint rule, x sin theta at the cell's row),
+    and the cells of a pixel average to the pixel's own mean as a map of wide images has it
+    (weights 3/4 and 1/8 of it and its neighbours along each axis)."""
+    image = sky_map()
+    lum = image.astype(np.float64) @ np.asarray(LUMINANCE)
+    fine = _pixel_density(image, ENV_INTERPOLATIONS["linear"])
+    k = MAP_COLUMNS // W
+    assert fine.shape == (k * H, k * W)
+    sin_rows = np.sin(math.pi * (np.arange(k * H) + 0.5) / (k * H))
+    cells = fine / sin_rows[:, None]
+
+    def bilinear(u, v):
+        x, y = u * W - 0.5, v * H - 0.5
+        j0, i0 = np.floor(x).astype(int), np.floor(y).astype(int)
+        tx, ty = x - j0, y - i0
+        i1, i0 = np.clip(i0 + 1, 0, H - 1), np.clip(i0, 0, H - 1)
+        j1, j0 = (j0 + 1) % W, j0 % W
+        return ((1 - tx) * (1 - ty) * lum[i0, j0] + tx * (1 - ty) * lum[i0, j1]
+                + (1 - tx) * ty * lum[i1, j0] + tx * ty * lum[i1, j1])
+
+    t = (np.arange(40) + 0.5) / 40
+    for i, j in ((SUN[0] * k + 3, SUN[1] * k + 11), (0, 5), (k * H - 1, k * W - 1), (100, 400)):
+        u, v = np.meshgrid((j + t) / (k * W), (i + t) / (k * H))
+        assert abs(bilinear(u, v).mean() - cells[i, j]) <= 1e-9 * max(1.0, cells[i, j]), (i, j)
+    pixel = 0.75 * lum + 0.125 * (np.roll(lum, 1, axis=1) + np.roll(lum, -1, axis=1))
+    below, above = np.concatenate([pixel[:1], pixel[:-1]]), np.concatenate([pixel[1:], pixel[-1:]])
+    pixel = 0.75 * pixel + 0.125 * (below + above)
+    np.testing.assert_allclose(cells.reshape(H, k, W, k).mean(axis=(1, 3)), pixel, rtol=1e-12)
 
 
 def _plane_scene(env: Environment, sampling: str, spp: int = 64) -> Scene:

@@ -98,6 +98,7 @@ def test_estimate_within_factor_2_of_true_error(measurements, scene, spp):
     figures = (f"true relMSE {mean_true:.4g} (relative standard error {relative_standard_error:.2f}), "
                f"estimate {estimate:.4g}, ratio {mean_true / estimate:.2f}; reference noise "
                f"{reference.noise_relmse:.2g}")
+    print(f"{scene} {spp} spp: {figures}")
     assert reference.noise_relmse <= MAX_REFERENCE_NOISE_SHARE * mean_true, "reference too noisy: " + figures
     assert relative_standard_error <= MAX_RELATIVE_STANDARD_ERROR, "too few runs to judge: " + figures
     assert 1.0 / FACTOR <= mean_true / estimate <= FACTOR, figures

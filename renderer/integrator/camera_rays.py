@@ -12,16 +12,18 @@ the full frame, so a window or a tile renders the same pixels as the whole frame
 from ..camera import RASTER_WIDTH, RASTER_X0, RASTER_Y0, camera_ray
 from ..kernels import kernel
 from ..kernels.rng import path_key, uniform
-from ..kernels.sobol import pixel_shift, sobol_2d
+from ..kernels.sobol import stratified
 from ..kernels.vecmath import madd
 from .dims import CAMERA_DIMS, LENS_DIM
 from .paths import PATH_ACTIVE, PATH_DEAD, store3
 
 
 @kernel
-def start_paths(ps, pixel_of_pid, cam, width, rows, first_row, seed, first, n, sample_base, init_stack):
+def start_paths(ps, pixel_of_pid, half_of_pid, cam, width, rows, first_row, seed, first, n, sample_base,
+                init_stack):
     """Camera rays for linear sample indices first .. first + n - 1 of a pass over a tile,
-    into rows 0..n-1 (row i owns radiance slot i); pixel_of_pid gets the tile's pixel."""
+    into rows 0..n-1 (row i owns radiance slot i); pixel_of_pid gets the tile's pixel,
+    half_of_pid the sample's half (kernels.rng.SAMPLE_HALVES: 1 for odd samples)."""
     raster = cam.raster
     npix = width * rows
     for i in range(n):
@@ -33,9 +35,10 @@ def start_paths(ps, pixel_of_pid, cam, width, rows, first_row, seed, first, n, s
         py = int(raster[RASTER_Y0]) + first_row + pixel // width
         frame_pixel = py * int(raster[RASTER_WIDTH]) + px
         key = path_key(seed, frame_pixel, sample)
-        # Stratified within the pixel over its samples (kernels.sobol); dimensions 0 and 1
-        # of the key stay reserved for it.
-        u, v = sobol_2d(sample, pixel_shift(seed, frame_pixel))
+        # Stratified within the pixel over its half's samples: the randomised Sobol pair
+        # of "dimensions" -1 and 0 (kernels.sobol.stratified), always, whatever
+        # STRATIFIED_DIMS; dimensions 0 and 1 of the key stay reserved for it.
+        u, v = stratified(key, -1), stratified(key, 0)
         o, d, near, length, ok = camera_ray(cam, px, py, u, v,
                                             uniform(key, LENS_DIM), uniform(key, LENS_DIM + 1))
         # Rays start at the near clip distance and end at the far one.
@@ -56,3 +59,4 @@ def start_paths(ps, pixel_of_pid, cam, width, rows, first_row, seed, first, n, s
         # No ray (outside a fisheye's circle): a black sample, as in Cycles.
         ps.alive[i] = PATH_ACTIVE if ok else PATH_DEAD
         pixel_of_pid[i] = pixel
+        half_of_pid[i] = sample & 1

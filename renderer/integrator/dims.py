@@ -6,8 +6,8 @@ do the same work in a different order, draw the same random numbers.
 """
 
 CAMERA_DIMS = 4  # the sample's position in its pixel, then on the lens; the path's own events follow
-# (the position in the pixel comes from kernels.sobol, stratified over the pixel's samples;
-# its two dimensions stay reserved)
+# (the position in the pixel comes from kernels.sobol, stratified over its half of the
+# pixel's samples (kernels.rng.SAMPLE_HALVES); its two dimensions stay reserved)
 LENS_DIM = 2  # the two of the point on the lens (spent by every camera, used by thin lenses)
 SHADOW_DIMS = 64  # a shadow ray's own tracking through media
 NEE_DIMS = 5  # a surface's light sample: the light pick, the point on it, the direction (environment)

@@ -100,6 +100,7 @@ class Tracer:
         self.no_aov = np.zeros((0, AOV_COUNT), np.float64)  # splat's film_aov without passes
         self.mist = np.array(cs.mist, np.float64)  # the Mist pass's start, 1 / depth, falloff
         self.pixel_of_pid = np.zeros(self.batch, np.int32)
+        self.half_of_pid = np.zeros(self.batch, np.int32)
         self.remaining = np.zeros(2 * self.batch, np.float32)
         self.lt = kernel_arrays(cs.lights)
         self.init_stack = camera_medium_stack(cs, self.isect)
@@ -133,14 +134,15 @@ class Tracer:
         cs, ps, sh, lt, cfg, L = self.cs, self.ps, self.sh, self.lt, self.cfg, self.L
         prim, bu, bv = np.full(1, -1, np.int32), np.zeros(1, np.float32), np.zeros(1, np.float32)
         calls: list[KernelCall] = self.subtree_calls() + [
-            (K.start_paths, (ps, self.pixel_of_pid, cs.camera, cs.width, cs.height, 0, 0, 0, 1, 0,
-                             self.init_stack)),
+            (K.start_paths, (ps, self.pixel_of_pid, self.half_of_pid, cs.camera, cs.width, cs.height,
+                             0, 0, 0, 1, 0, self.init_stack)),
             (K.shade_surface, (1, ps, prim, bu, bv, cs.geometry, self.mt, self.override, self.program_out,
                                lt, cs.lights.env_light, cs.lights.sun_rows, cs.environment, cfg, L, sh, 0,
                                cs.camera, self.mist)),
             (K.compact_paths, (1, ps)),
-            (K.splat, (1, L, self.pixel_of_pid, np.zeros((1, 3), np.float64), np.zeros((1, 3), np.float64),
-                       np.zeros(1, np.int64), np.zeros(1, np.int64), np.zeros(1, np.float64), self.no_aov)),
+            (K.splat, (1, L, self.pixel_of_pid, self.half_of_pid, np.zeros((1, 3), np.float64),
+                       np.zeros((1, 3), np.float64), np.zeros(1, np.int64), np.zeros((1, 4), np.float64),
+                       np.zeros(1, np.int64), np.zeros(1, np.float64), self.no_aov)),
         ]
         if cs.shading is not None:
             st, lobes = cs.shading.arrays, self.max_lobes
@@ -209,8 +211,8 @@ class Tracer:
     def _trace_batch(self, film: Film, first: int, n: int, sample_base: int, seed: int) -> None:
         cs, ps, sh = self.cs, self.ps, self.sh
         self.L[:n] = 0.0
-        K.start_paths(ps, self.pixel_of_pid, cs.camera, film.width, film.height, film.first_row, seed, first,
-                      n, sample_base, self.init_stack)
+        K.start_paths(ps, self.pixel_of_pid, self.half_of_pid, cs.camera, film.width, film.height,
+                      film.first_row, seed, first, n, sample_base, self.init_stack)
         if self.aovs:
             self._start_aovs(first, n, sample_base, film.width * film.height)
         live = n
@@ -233,7 +235,8 @@ class Tracer:
                 self._shadows(count)
             live = K.compact_paths(live, ps)
         film_aov = film.ensure_aov(self.aov_columns) if self.aovs else self.no_aov
-        K.splat(n, self.L, self.pixel_of_pid, film.sum, film.sq, film.n, film.nonfinite, film.alpha, film_aov)
+        K.splat(n, self.L, self.pixel_of_pid, self.half_of_pid, film.sum, film.sq, film.n, film.odd,
+                film.nonfinite, film.alpha, film_aov)
 
     def _start_aovs(self, first: int, n: int, sample_base: int, pixels: int) -> None:
         """The passes' per-path scratch: feature throughput 1, and which paths are their

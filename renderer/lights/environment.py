@@ -5,8 +5,9 @@ importance.
 Reading the map (directions to (u, v), `lookup`) is renderer.lights.environment_lookup.
 
 Importance sampling (pbrt's 2-D piecewise-constant distribution; Cycles' background map).
-The density over (u, v) is constant per pixel, proportional to f[i, j] = (the mean of the
-interpolated luminance over the pixel) x sin(theta at the row's centre); a direction's
+The density over (u, v) is constant per cell, proportional to f[i, j] = (the mean of the
+interpolated luminance over the cell: a pixel, or k x k cells per pixel of a small image,
+renderer.lights.environment_map) x sin(theta at the row's centre); a direction's
 solid-angle pdf is p(u, v) / (2 pi^2 sin theta). Using the interpolated function's mean,
 not the pixel's own value, keeps the pdf positive wherever Linear spreads a bright pixel,
 so a tiny sun in the map cannot be reached only by BSDF sampling (fireflies).

@@ -3,9 +3,10 @@
 `build_environment` turns an Environment's equirectangular radiance map into the kernel
 tuple below (the importance-sampling distribution included); `mean_radiance` gives the
 light table the environment's power. The density over the map's (u, v) is constant per
-pixel, proportional to f[i, j] = (the mean of the interpolated luminance over the pixel) x
+cell, proportional to f[i, j] = (the mean of the interpolated luminance over the cell) x
 sin(theta at the row's centre), as pbrt's 2-D piecewise-constant distribution and Cycles'
-background map.
+background map; a cell is a pixel, or for an image under MAP_COLUMNS / 2 columns a k x k
+part of one.
 
 Kernel tuple: laid out in renderer.lights.environment_lookup (None for a constant world,
 so that no kernel compiles the map's code).
@@ -34,6 +35,13 @@ from .environment_lookup import (
 # A mirror-ball image is sampled through an equirectangular grid of at most this many rows
 # (twice as many columns), evaluated at 2 x 2 points per cell.
 MAX_GRID_ROWS = 512
+
+# Cycles evaluates its background map at 1024 columns by default (world.cycles.
+# sample_map_resolution); an image narrower than that gets its pixels split into k x k cells
+# (k even), so that the density follows Linear's ramps around a small bright spot (a sun of
+# 2 x 2 pixels spreads over 3 x 3 with a tent profile, which a constant per pixel
+# matches badly).
+MAP_COLUMNS = 1024
 
 
 def build_environment(env: Environment) -> tuple | None:
@@ -110,17 +118,31 @@ def _grid_density(rgb: np.ndarray) -> np.ndarray:
 
 
 def _pixel_density(image: np.ndarray, interpolation: int) -> np.ndarray:
-    """f (H, W): the mean interpolated luminance over each pixel x sin(theta) at its centre.
-    Linear's mean over a pixel weighs it and its neighbours 3/4 and 1/8 along each axis (the
-    integral of the tent functions over the pixel), wrapping in u, clamped in v."""
+    """f: the mean interpolated luminance over each cell x sin(theta) at the cell's centre.
+    Cells are the pixels (H, W) for Closest and for an image of MAP_COLUMNS / 2 columns or
+    more (Linear's mean over a pixel weighs it and its neighbours 3/4 and 1/8 along each
+    axis: the integral of the tent functions over the pixel, wrapping in u, clamped in v);
+    else k x k per pixel (k H, k W), k even so that no cell straddles a pixel centre: each
+    lies within one bilinear patch, whose mean over it is its value at the cell's centre."""
     lum = image.astype(np.float64) @ np.asarray(LUMINANCE)
-    if interpolation != CLOSEST:
+    h, w = lum.shape
+    k = 2 * (MAP_COLUMNS // (2 * w))
+    if interpolation != CLOSEST and k >= 2:
+        x = (np.arange(k * w) + 0.5) / k - 0.5  # cell centres in pixel units (pixel centres at integers)
+        j0 = np.floor(x).astype(np.int64)
+        tx = x - j0
+        lum = (1.0 - tx) * lum[:, j0 % w] + tx * lum[:, (j0 + 1) % w]
+        y = (np.arange(k * h) + 0.5) / k - 0.5
+        i0 = np.floor(y).astype(np.int64)
+        ty = (y - i0)[:, None]
+        lum = (1.0 - ty) * lum[np.clip(i0, 0, h - 1)] + ty * lum[np.clip(i0 + 1, 0, h - 1)]
+    elif interpolation != CLOSEST:
         lum = 0.75 * lum + 0.125 * (np.roll(lum, 1, axis=1) + np.roll(lum, -1, axis=1))
         below = np.concatenate([lum[:1], lum[:-1]])
         above = np.concatenate([lum[1:], lum[-1:]])
         lum = 0.75 * lum + 0.125 * (below + above)
-    h = image.shape[0]
-    sin_theta = np.sin(math.pi * (np.arange(h) + 0.5) / h)
+    rows = lum.shape[0]
+    sin_theta = np.sin(math.pi * (np.arange(rows) + 0.5) / rows)
     return np.ascontiguousarray(np.maximum(lum, 0.0) * sin_theta[:, None])
 
 
