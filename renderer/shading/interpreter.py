@@ -18,7 +18,6 @@ from .color import fresnel, hsl_to_rgb, hsv_to_rgb, hue_saturation_value, layer_
 from .fractal import noise_texture
 from .image import image_lookup
 from .math_ops import math_op, mix_color, vector_op
-from .noise import noise_texture_3d
 from .normals import normal_map
 from .patterns import brick, magic, wave
 from .program import I_A, I_B, I_C, I_D, I_DST, I_E, I_OP, I_P0, I_P1, I_P2, OP
@@ -32,7 +31,7 @@ MATH, VECTOR_MATH, MIX, MIX_FLOAT = OP["math"], OP["vector_math"], OP["mix"], OP
 MAPPING, CHECKER, IMAGE, RAMP, CURVE = OP["mapping"], OP["checker"], OP["image"], OP["ramp"], OP["curve"]
 COMBINE, COPY, INVERT, RGB_TO_BW = OP["combine"], OP["copy"], OP["invert"], OP["rgb_to_bw"]
 CLAMP, GRADIENT, GAMMA, BRIGHT_CONTRAST = OP["clamp"], OP["gradient"], OP["gamma"], OP["bright_contrast"]
-MAP_RANGE, NOISE, HSV, HSV_CONVERT = OP["map_range"], OP["noise"], OP["hsv"], OP["hsv_convert"]
+MAP_RANGE, HSV, HSV_CONVERT = OP["map_range"], OP["hsv"], OP["hsv_convert"]
 FRESNEL, LAYER_WEIGHT = OP["fresnel"], OP["layer_weight"]
 NORMAL_MAP, BUMP_EVAL, BUMP = OP["normal_map"], OP["bump_eval"], OP["bump"]
 NOISE_ND, WHITE_NOISE, VORONOI = OP["noise_nd"], OP["white_noise"], OP["voronoi"]
@@ -172,14 +171,6 @@ def run_program(st, m, regs, p, b0, b1, b2, x, n, wi, back):  # noqa: C901 - the
             nn = _v(regs, b)
             regs[dst] = layer_weight(float(regs[a]), wi[0] * nn[0] + wi[1] * nn[1] + wi[2] * nn[2], back,
                                      ins[I_P0] != 0)
-        elif op == NOISE:
-            q = _v(regs, a)
-            s = float(regs[b])
-            value, col = noise_texture_3d(q[0] * s, q[1] * s, q[2] * s, float(regs[b + 1]),
-                                          float(regs[b + 2]), float(regs[b + 3]), float(regs[b + 4]),
-                                          ins[I_P0] != 0)
-            regs[dst] = value
-            _put3(regs, dst + 1, col)
         elif op == NORMAL_MAP:
             _put3(regs, dst, normal_map(_v(regs, a), float(regs[b]), _v(regs, c), float(regs[ins[I_D]]),
                                         ins[I_P0], n, back))

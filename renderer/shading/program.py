@@ -59,8 +59,6 @@ OPCODES = (
     "hsv_convert",  # dst(3) = colour a to HSV (i0 0), HSV to RGB (1), to HSL (2), HSL to RGB (3)
     "fresnel",     # dst = Fresnel of IOR a with normal b (3), the view direction and the face side
     "layer_weight",  # dst = Layer Weight of blend a with normal b: i0 0 Fresnel, 1 Facing
-    "noise",       # dst factor, dst+1..3 colour: Noise (3D fBM) of vector a; b..b+4 = scale,
-                   # detail, roughness, lacunarity, distortion; i0 normalize
     "normal_map",  # dst(3) = Normal Map of colour a, strength b, tangent c (3), bitangent sign d;
                    # i0 space (names.NORMAL_MAP_SPACES)
     "noise_nd",    # dst factor, dst+1..3 colour: Noise Texture of vector a; b..b+7 = W, scale, detail,
