@@ -31,6 +31,7 @@ MAP_WIDTH, MAP_HEIGHT = 1024, 512  # 0.35 degrees per pixel: the map of a world 
 # The largest map (an Environment Texture's own resolution, up to this): 64 MiB of float32
 # RGB, plus the importance-sampling tables built from it.
 MAX_MAP_WIDTH = 4096
+ROWS_PER_BLOCK = 64  # rows of a 1024-wide map evaluated at once (fewer for wider maps)
 
 
 def world_tex_coord(graph, node, output, scope):
@@ -104,11 +105,12 @@ WORLD_HANDLERS = {"ShaderNodeTexCoord": world_tex_coord, "ShaderNodeNewGeometry"
 WORLD_SOURCES = {"ShaderNodeTexEnvironment"}  # vary with direction by themselves
 
 
-def grid_directions(width: int, height: int) -> np.ndarray:
-    """(H, W, 3) unit directions at the pixel centres of an equirectangular map, row 0 at
-    the bottom (renderer.lights.environment_lookup's mapping)."""
+def grid_directions(width: int, height: int, first: int = 0, last: int | None = None) -> np.ndarray:
+    """(rows, W, 3) unit directions at the pixel centres of rows first..last - 1 (all by
+    default) of an equirectangular map, row 0 at the bottom (renderer.lights.
+    environment_lookup's mapping)."""
     u = (np.arange(width) + 0.5) / width
-    v = (np.arange(height) + 0.5) / height
+    v = (np.arange(first, height if last is None else last) + 0.5) / height
     theta = np.pi * (1.0 - v)[:, None]
     phi = np.pi * (1.0 - 2.0 * u)[None, :]
     return np.stack(np.broadcast_arrays(np.sin(theta) * np.cos(phi), np.sin(theta) * np.sin(phi),
@@ -163,16 +165,20 @@ def evaluate_on_grid(program, register: int, images, width: int = MAP_WIDTH,
     from renderer.shading.evaluate import evaluate_program
     from renderer.shading.table import build_shading_tables
 
-    directions = grid_directions(width, height).reshape(-1, 3)
     # No surface: one dummy triangle carries the (unused) corner attributes.
     attributes = [CornerAttribute(name, np.zeros((1, 3, 3), np.float32)) for name in program.attributes]
     mesh = Mesh("world", np.zeros((3, 3), np.float32), np.array([[0, 1, 2]], np.int32), ["world"],
                 attributes=attributes)
     material = Material("world", lobes=[Lobe("diffuse")], program=program)
     tables = build_shading_tables([material], [mesh], images.list() if images is not None else [], 1)
-    count = directions.shape[0]
-    bary = np.tile(np.array([1.0, 0.0, 0.0], np.float32), (count, 1))
-    triangles = np.zeros(count, np.int32)
-    values = evaluate_program(tables, 0, register, 3, triangles, bary, directions, -directions)
-    values = np.where(np.isfinite(values), np.maximum(values, 0.0), 0.0)
-    return values.reshape(height, width, 3).astype(np.float32)
+    out = np.empty((height, width, 3), np.float32)
+    rows = max(1, ROWS_PER_BLOCK * MAP_WIDTH // width)
+    for first in range(0, height, rows):  # in blocks of rows: peak memory stays near the map's
+        directions = grid_directions(width, height, first, min(height, first + rows)).reshape(-1, 3)
+        count = directions.shape[0]
+        bary = np.tile(np.array([1.0, 0.0, 0.0], np.float32), (count, 1))
+        triangles = np.zeros(count, np.int32)
+        values = evaluate_program(tables, 0, register, 3, triangles, bary, directions, -directions)
+        values = np.where(np.isfinite(values), np.maximum(values, 0.0), 0.0)
+        out[first:first + rows] = values.reshape(-1, width, 3)
+    return out
