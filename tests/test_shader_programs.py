@@ -20,6 +20,7 @@ from __future__ import annotations
 import subprocess
 import sys
 
+import bake_cases_nodes
 import bake_cases_textures
 import numpy as np
 import pytest
@@ -33,8 +34,8 @@ BAKE_SIZE = 32
 # |Haze - Cycles bake| / max(1, |value|). The program runs at the UVs Cycles baked (they
 # are up to 6e-5 off the texel centres), but Cycles' own float32 coordinates still differ
 # from ours by round-off, which steep operations (divide, power, logarithm near 0; wrap)
-# amplify to 4e-5; the Ease, B-Spline and Cardinal ramps, sampled with Blender's own
-# ColorRamp.evaluate, differ from Cycles' tables by up to 7e-5 (cause not found yet).
+# amplify to 4e-5. Color Ramps (Blender's own ColorRamp.evaluate in Cycles' 257-entry
+# tables) agree to 1e-6: TIGHT_CASES.
 TOLERANCE = 1e-4
 
 BAKE_BODY = rf'''
@@ -43,6 +44,7 @@ import numpy as np
 import bpy_helpers as H
 import blender_cornell as C
 import bake_cases_textures as T
+import bake_cases_nodes as N
 
 SIZE = {BAKE_SIZE}
 
@@ -76,6 +78,8 @@ def case_nodes(tree, name):
     link = tree.links.new
     if name.startswith("tex_"):
         return T.case_nodes(tree, name)
+    if name.startswith("node_"):
+        return N.case_nodes(tree, name)
     if name.startswith("checker"):
         node = n("ShaderNodeTexChecker")
         node.inputs["Scale"].default_value = 7.3
@@ -284,13 +288,15 @@ def bake(obj, name):
     return pixels.reshape(-1, 4)[:, :3], material, emission
 
 
-def haze_values(material, emission, uv):
+def haze_values(obj, material, emission, uv):
     """The exporter's program for the Emission's Color input, run where Cycles baked each
     texel: at the UV coordinates `uv` (K, 2) Cycles itself baked (its texel positions are
     not exactly the texel centres)."""
     from addon.export.images import ImageLibrary
     from addon.export.messages import Messages
     from addon.export.nodes import ShaderGraph
+    from addon.export.object_info import object_info_values
+    from addon.export.world_program import WORLD_HANDLERS
     from renderer.scene import CornerAttribute, Lobe, Material, Mesh
     from renderer.shading.evaluate import evaluate_program
     from renderer.shading.table import build_shading_tables
@@ -298,6 +304,10 @@ def haze_values(material, emission, uv):
     messages = Messages()
     images = ImageLibrary(messages)
     graph = ShaderGraph("test", messages, images)
+    graph.pass_index = material.pass_index
+    if material.name.startswith("node_env_"):  # the world's Environment Texture handler
+        env = "ShaderNodeTexEnvironment"
+        graph.compiled = dict(graph.compiled, **{{env: WORLD_HANDLERS[env]}})
     reg = graph.input_varying(emission.inputs["Color"])
     assert reg is not None, messages
     program = graph.program.build([(0, 1, 3, reg.index, 0)])
@@ -311,6 +321,8 @@ def haze_values(material, emission, uv):
     attributes = [CornerAttribute("uv:", corners[None]), CornerAttribute("object", obj_pos[None]),
                   CornerAttribute("attr:Col", col[None]), CornerAttribute("attr:", col[None]),
                   CornerAttribute("tangent:", tangent), CornerAttribute("tangent_sign:", sign)]
+    info = object_info_values(obj, np.array(obj.matrix_world, np.float64))
+    attributes += [CornerAttribute(k, np.broadcast_to(v, (1, 3, 3)).copy()) for k, v in info.items()]
     mesh = Mesh("t", obj_pos, np.array([[0, 1, 2]], np.int32), ["m"], attributes=attributes)
     m = Material("m", lobes=[Lobe("diffuse")], program=program)
     tables = build_shading_tables([m], [mesh], images.list(), 1)
@@ -336,7 +348,7 @@ def main():
     for name in CASES:
         try:
             baked, material, emission = bake(obj, name)
-            ours = haze_values(material, emission, uv)
+            ours = haze_values(obj, material, emission, uv)
         except Exception as error:  # reported per case, so one broken node fails one test
             report[name] = repr(error)
             continue
@@ -367,7 +379,11 @@ CASES = (
                              "arccosine", "arctangent", "arctan2", "sinh", "cosh", "tanh", "radians",
                              "degrees")]
     + bake_cases_textures.CASES
+    + bake_cases_nodes.CASES
 )
+
+
+TIGHT_CASES = {name: bake_cases_nodes.TIGHT for name in CASES if name.startswith("ramp_")}
 
 
 @pytest.fixture(scope="module")
@@ -382,7 +398,8 @@ def baked(tmp_path_factory):
 def test_node_values_match_cycles_bake(baked, case):
     assert not isinstance(baked[case], str), baked[case]
     worst, scale, texel = baked[case]
-    tolerance = bake_cases_textures.TOLERANCES.get(case, TOLERANCE)
+    tolerances = {**bake_cases_textures.TOLERANCES, **bake_cases_nodes.TOLERANCES, **TIGHT_CASES}
+    tolerance = tolerances.get(case, TOLERANCE)
     assert worst <= tolerance, f"max relative |Haze - Cycles| {worst:g} at texel {texel} (|v| <= {scale:g})"
 
 

@@ -196,6 +196,7 @@ def convert_material(blender_material, messages: Messages,
         messages.warn(subject, "has no active Material Output node; rendered black (as in Cycles)")
         return MaterialExport(Material(name, lobes=close_open_sides([])), None)
     graph = ShaderGraph(subject, messages, images)
+    graph.pass_index = blender_material.pass_index
     if graph.link_source(output.inputs["Displacement"]) is not None:
         messages.warn(subject, "displacement is not supported and is ignored")
     graph.programs = False  # media are homogeneous here: no program reaches a Volume output

@@ -35,7 +35,7 @@ UV_ACTIVE = "uv:"  # the mesh's active render UV map (resolved per mesh at expor
 VARYING_SOURCES = {
     "ShaderNodeTexCoord", "ShaderNodeUVMap", "ShaderNodeNewGeometry", "ShaderNodeTexImage",
     "ShaderNodeTexChecker", "ShaderNodeTexGradient", "ShaderNodeTexNoise", "ShaderNodeFresnel",
-    "ShaderNodeLayerWeight", "ShaderNodeAttribute", "ShaderNodeVertexColor",
+    "ShaderNodeLayerWeight", "ShaderNodeAttribute", "ShaderNodeVertexColor", "ShaderNodeObjectInfo",
 }
 
 
@@ -172,17 +172,37 @@ def image(graph, node, output, scope) -> Reg | None:
         return graph.program.const((1.0, 0.0, 1.0) if output.identifier == "Color" else 1.0)
     if node.projection != "FLAT":
         graph.warn_node(node, f"{node.projection} projection is not supported; rendered as Flat")
-    interpolation = node.interpolation
-    if interpolation not in ("Closest", "Linear"):
-        graph.warn_node(node, f"{interpolation} interpolation is rendered as Linear")
     name = graph.add_image(node.image)
     if name is None:
         return None
     p = graph.program
     v = _texture_vector(graph, node, scope, "uv")
     extension = ("REPEAT", "EXTEND", "CLIP", "MIRROR").index(node.extension)
-    out = p.emit("image", 4, v, i0=p.image(name), i1=int(interpolation != "Closest"), i2=extension)
+    out = p.emit("image", 4, v, i0=p.image(name), i1=interpolation_index(node.interpolation), i2=extension)
     return Reg(out.index + 3, 1) if output.identifier == "Alpha" else Reg(out.index, 3)
+
+
+def interpolation_index(interpolation: str) -> int:
+    """program.INTERPOLATIONS index of an image node's interpolation (Smart: Cubic, as Cycles'
+    CPU sampler renders it)."""
+    return {"Closest": 0, "Linear": 1}.get(interpolation, 2)
+
+
+INFO_ATTRIBUTES = {"Location": ("info:location", 0, 3), "Color": ("info:color", 0, 3),
+                   "Alpha": ("info:values", 0, 1), "Object Index": ("info:values", 1, 1),
+                   "Random": ("info:values", 2, 1)}
+
+
+def object_info(graph, node, output, scope) -> Reg | None:
+    """Object Info: per-object values the exporter writes as constant corner attributes
+    (mesh.object_info_attributes); Material Index is the material's own constant."""
+    if output.identifier == "Material Index":
+        return graph.program.const(float(graph.pass_index))
+    if output.identifier not in INFO_ATTRIBUTES:
+        return None
+    name, first, width = INFO_ATTRIBUTES[output.identifier]
+    reg = graph.program.attribute(name, 3)
+    return Reg(reg.index + first, width)
 
 
 def color_ramp(graph, node, output, scope) -> Reg:
@@ -305,11 +325,14 @@ PROGRAM_HANDLERS: dict[str, Callable] = {
     "ShaderNodeFresnel": fresnel,
     "ShaderNodeLayerWeight": layer_weight,
     "ShaderNodeBrightContrast": bright_contrast,
+    "ShaderNodeObjectInfo": object_info,
 }
 MATH_ADD = MATH["ADD"]
 
 # Procedural textures (noise, ...) are compiled in their own module.
+from .node_program_curves import TABLE_HANDLERS  # noqa: E402
 from .node_program_textures import TEXTURE_HANDLERS, TEXTURE_SOURCES  # noqa: E402
 
 PROGRAM_HANDLERS.update(TEXTURE_HANDLERS)
+PROGRAM_HANDLERS.update(TABLE_HANDLERS)
 VARYING_SOURCES |= TEXTURE_SOURCES

@@ -53,6 +53,7 @@ class ShaderGraph:
         self.sources = VARYING  # node types that vary by themselves (a world's add its own)
         self._varying: dict[tuple, bool] = {}
         self._registers: dict[tuple, Reg | None] = {}
+        self.pass_index = 0  # the material's Pass Index (Object Info's Material Index)
 
     # ---------------------------------------------------------------- links
     @staticmethod

@@ -20,6 +20,7 @@ from .lights import area_light, point_light, spot_light, sun_light
 from .materials import MaterialLibrary
 from .mesh import LocalGeometry, MeshPart, build_meshes, read_geometry, transform
 from .messages import Messages, object_subject
+from .object_info import add_object_info
 from .volumes import VolumeExporter, is_smoke_domain
 from .world import world_environment
 
@@ -97,7 +98,10 @@ class MeshCollector:
         geometry = self._local_geometry(obj, needed)
         if geometry is None or len(geometry.triangles) == 0:
             return
-        world = transform(geometry, np.array(instance.matrix_world, dtype=np.float64))
+        matrix = np.array(instance.matrix_world, dtype=np.float64)
+        world = transform(geometry, matrix)
+        random_id = instance.random_id if instance.is_instance else None
+        add_object_info(world.attributes, needed, len(world.triangles), obj, matrix, random_id)
         names = [m.name for m in materials]
         self.groups.setdefault(instance_group(instance), []).append(MeshPart(world, names))
 

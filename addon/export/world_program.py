@@ -5,8 +5,8 @@ equirectangular grid into an environment map (renderer.lights.environment), whic
 the scene by importance sampling and MIS as an HDRI does, and which escaped rays read with
 bilinear interpolation (not the program itself: between pixel centres the map interpolates).
 
-Environment Textures (equirectangular) inside such a program are image lookups at the
-direction's equirectangular coordinates (Cycles' direction_to_equirectangular), so an HDRI
+Environment Textures inside such a program are image lookups at the direction's
+equirectangular or mirror-ball coordinates (Cycles' direction_to_*), so an HDRI
 times a colour, a Mix of an HDRI and a gradient, or of two HDRIs, become one map.
 
 As Cycles sets up the background's shading point (geom/shader_data.h,
@@ -21,12 +21,17 @@ import numpy as np
 from renderer.scene import CornerAttribute, Environment, Lobe, Material, Mesh
 from renderer.shading.names import MATH_OPS, VECTOR_OPS
 
+from .node_program import interpolation_index
 from .node_values import FRONT
 from .nodes import ShaderGraph
 from .program_builder import Reg
 from .world_map import follow
 
-MAP_WIDTH, MAP_HEIGHT = 1024, 512  # 0.35 degrees per pixel
+MAP_WIDTH, MAP_HEIGHT = 1024, 512  # 0.35 degrees per pixel: the map of a world without images
+# The largest map (an Environment Texture's own resolution, up to this): 64 MiB of float32
+# RGB, plus the importance-sampling tables built from it.
+MAX_MAP_WIDTH = 4096
+ROWS_PER_BLOCK = 64  # rows of a 1024-wide map evaluated at once (fewer for wider maps)
 
 
 def world_tex_coord(graph, node, output, scope):
@@ -47,19 +52,14 @@ def world_geometry(graph, node, output, scope):
 
 
 def world_environment_texture(graph, node, output, scope):
-    """Environment Texture (equirectangular): the image at u = 1/2 - atan2(y, x) / 2 pi,
-    v = 1 - acos(z) / pi of the normalised vector (the direction when unlinked), with
-    Cycles' Repeat extension."""
+    """Environment Texture: the image at the equirectangular (u = 1/2 - atan2(y, x) / 2 pi,
+    v = 1 - acos(z) / pi) or mirror-ball coordinates of the normalised vector (the direction
+    when unlinked), with Cycles' Repeat extension (svm_node_tex_environment)."""
     p = graph.program
     alpha = output.identifier == "Alpha"
     if node.image is None:
         graph.warn_node(node, "has no image; rendered as Cycles' magenta")
         return p.const(1.0 if alpha else (1.0, 0.0, 1.0))
-    if node.projection != "EQUIRECTANGULAR":
-        graph.warn_node(node, "Mirror Ball projection is not supported inside a world program")
-        return None
-    if node.interpolation not in ("Closest", "Linear"):
-        graph.warn_node(node, f"{node.interpolation} interpolation is rendered as Linear")
     name = graph.add_image(node.image)
     if name is None:
         return None
@@ -67,15 +67,37 @@ def world_environment_texture(graph, node, output, scope):
     d = graph.operand(socket, scope) if graph.link_source(socket) is not None else p.emit("position", 3)
     zero = p.const(0.0)
     d = p.emit("vector_math", 3, d, zero, zero, p.const(1.0), i0=VECTOR_OPS.index("NORMALIZE"))
-    x, y, z = (p.component(d, k) for k in range(3))
-    math = {op: MATH_OPS.index(op) for op in ("ARCTAN2", "ARCCOSINE", "MULTIPLY_ADD")}
-    phi = p.emit("math", 1, y, x, zero, i0=math["ARCTAN2"])
-    u = p.emit("math", 1, phi, p.const(-0.5 / np.pi), p.const(0.5), i0=math["MULTIPLY_ADD"])
-    theta = p.emit("math", 1, z, zero, zero, i0=math["ARCCOSINE"])
-    v = p.emit("math", 1, theta, p.const(-1.0 / np.pi), p.const(1.0), i0=math["MULTIPLY_ADD"])
+    mirror_ball = node.projection == "MIRROR_BALL"
+    u, v = mirror_ball_uv(p, d) if mirror_ball else equirectangular_uv(p, d)
     uv = p.emit("combine", 3, u, v, zero)
-    out = p.emit("image", 4, uv, i0=p.image(name), i1=int(node.interpolation != "Closest"), i2=0)
+    out = p.emit("image", 4, uv, i0=p.image(name), i1=interpolation_index(node.interpolation), i2=0)
     return Reg(out.index + 3, 1) if alpha else Reg(out.index, 3)
+
+
+def _math(p, op: str, a: Reg, b: Reg, c: Reg | None = None) -> Reg:
+    return p.emit("math", 1, a, b, c if c is not None else p.const(0.0), i0=MATH_OPS.index(op))
+
+
+def equirectangular_uv(p, d: Reg) -> tuple[Reg, Reg]:
+    """Cycles' direction_to_equirectangular of the unit vector d."""
+    x, y, z = (p.component(d, k) for k in range(3))
+    zero = p.const(0.0)
+    phi = _math(p, "ARCTAN2", y, x)
+    u = _math(p, "MULTIPLY_ADD", phi, p.const(-0.5 / np.pi), p.const(0.5))
+    theta = _math(p, "ARCCOSINE", z, zero)
+    return u, _math(p, "MULTIPLY_ADD", theta, p.const(-1.0 / np.pi), p.const(1.0))
+
+
+def mirror_ball_uv(p, d: Reg) -> tuple[Reg, Reg]:
+    """Cycles' direction_to_mirrorball of the unit vector d: (x, z) / (2 sqrt((1 - y) / 2))
+    mapped to [0, 1]. Where the divisor is 0 (d = +Y) x = z = 0, which Math's safe Divide
+    also gives."""
+    x, y, z = (p.component(d, k) for k in range(3))
+    half, zero = p.const(0.5), p.const(0.0)
+    h = _math(p, "MAXIMUM", _math(p, "MULTIPLY_ADD", y, p.const(-0.5), half), zero)  # -0.5 (y - 1)
+    div = _math(p, "MULTIPLY", _math(p, "SQRT", h, zero), p.const(2.0))
+    u = _math(p, "MULTIPLY_ADD", _math(p, "DIVIDE", x, div), half, half)
+    return u, _math(p, "MULTIPLY_ADD", _math(p, "DIVIDE", z, div), half, half)
 
 
 WORLD_HANDLERS = {"ShaderNodeTexCoord": world_tex_coord, "ShaderNodeNewGeometry": world_geometry,
@@ -83,11 +105,12 @@ WORLD_HANDLERS = {"ShaderNodeTexCoord": world_tex_coord, "ShaderNodeNewGeometry"
 WORLD_SOURCES = {"ShaderNodeTexEnvironment"}  # vary with direction by themselves
 
 
-def grid_directions(width: int, height: int) -> np.ndarray:
-    """(H, W, 3) unit directions at the pixel centres of an equirectangular map, row 0 at
-    the bottom (renderer.lights.environment_lookup's mapping)."""
+def grid_directions(width: int, height: int, first: int = 0, last: int | None = None) -> np.ndarray:
+    """(rows, W, 3) unit directions at the pixel centres of rows first..last - 1 (all by
+    default) of an equirectangular map, row 0 at the bottom (renderer.lights.
+    environment_lookup's mapping)."""
     u = (np.arange(width) + 0.5) / width
-    v = (np.arange(height) + 0.5) / height
+    v = (np.arange(first, height if last is None else last) + 0.5) / height
     theta = np.pi * (1.0 - v)[:, None]
     phi = np.pi * (1.0 - 2.0 * u)[None, :]
     return np.stack(np.broadcast_arrays(np.sin(theta) * np.cos(phi), np.sin(theta) * np.sin(phi),
@@ -112,27 +135,50 @@ def world_program_map(graph: ShaderGraph, surface_socket) -> Environment | None:
                        p.const(graph.input_value(inputs["Strength"])[FRONT]))
     multiply = VECTOR_OPS.index("MULTIPLY")
     radiance = p.emit("vector_math", 3, color, strength, color, p.const(1.0), i0=multiply)
-    pixels = evaluate_on_grid(p.build([]), radiance.index, graph.images)
+    program = p.build([])
+    width, height = map_size(program, graph.images)
+    pixels = evaluate_on_grid(program, radiance.index, graph.images, width, height)
     return Environment(radiance=(1.0, 1.0, 1.0), radiance_map=pixels, interpolation="linear",
                        projection="equirectangular")
 
 
-def evaluate_on_grid(program, register: int, images) -> np.ndarray:
+def map_size(program, images) -> tuple[int, int]:
+    """(width, height) of the map a world program is evaluated on: MAP_WIDTH x MAP_HEIGHT, or
+    as fine as the program's largest W x H image, max(W, 2 H) wide (an equirectangular
+    image's own resolution; twice a square mirror ball's), capped at MAX_MAP_WIDTH, so a
+    sharp HDRI seen directly is not blurred by a coarser map."""
+    textures = {t.name: t for t in images.list()} if images is not None else {}
+    width = MAP_WIDTH
+    for name in program.images:
+        if name in textures:
+            h, w = textures[name].pixels.shape[:2]
+            width = max(width, w, 2 * h)
+    width = min(width, MAX_MAP_WIDTH)
+    width += width % 2
+    return width, width // 2
+
+
+def evaluate_on_grid(program, register: int, images, width: int = MAP_WIDTH,
+                     height: int = MAP_HEIGHT) -> np.ndarray:
     """(H, W, 3) float32 radiance >= 0: the program's registers register..+2 at every pixel
     centre's direction D (position D, normal -D)."""
     from renderer.shading.evaluate import evaluate_program
     from renderer.shading.table import build_shading_tables
 
-    directions = grid_directions(MAP_WIDTH, MAP_HEIGHT).reshape(-1, 3)
     # No surface: one dummy triangle carries the (unused) corner attributes.
     attributes = [CornerAttribute(name, np.zeros((1, 3, 3), np.float32)) for name in program.attributes]
     mesh = Mesh("world", np.zeros((3, 3), np.float32), np.array([[0, 1, 2]], np.int32), ["world"],
                 attributes=attributes)
     material = Material("world", lobes=[Lobe("diffuse")], program=program)
     tables = build_shading_tables([material], [mesh], images.list() if images is not None else [], 1)
-    count = directions.shape[0]
-    bary = np.tile(np.array([1.0, 0.0, 0.0], np.float32), (count, 1))
-    triangles = np.zeros(count, np.int32)
-    values = evaluate_program(tables, 0, register, 3, triangles, bary, directions, -directions)
-    values = np.where(np.isfinite(values), np.maximum(values, 0.0), 0.0)
-    return values.reshape(MAP_HEIGHT, MAP_WIDTH, 3).astype(np.float32)
+    out = np.empty((height, width, 3), np.float32)
+    rows = max(1, ROWS_PER_BLOCK * MAP_WIDTH // width)
+    for first in range(0, height, rows):  # in blocks of rows: peak memory stays near the map's
+        directions = grid_directions(width, height, first, min(height, first + rows)).reshape(-1, 3)
+        count = directions.shape[0]
+        bary = np.tile(np.array([1.0, 0.0, 0.0], np.float32), (count, 1))
+        triangles = np.zeros(count, np.int32)
+        values = evaluate_program(tables, 0, register, 3, triangles, bary, directions, -directions)
+        values = np.where(np.isfinite(values), np.maximum(values, 0.0), 0.0)
+        out[first:first + rows] = values.reshape(-1, width, 3)
+    return out

@@ -19,68 +19,12 @@ import numpy as np
 
 from renderer.kernels import inline_kernel, kernel
 
-from .noise import _fade, _wrap, perlin_3d
+from .hash import _M, hash_uint, hash_uint2, hash_uint3, hash_uint4
 
-_M = 0xFFFFFFFF
 TYPES = ("MULTIFRACTAL", "FBM", "HYBRID_MULTIFRACTAL", "RIDGED_MULTIFRACTAL", "HETERO_TERRAIN")
 T_MULTI, T_FBM, T_HYBRID, T_RIDGED, T_HETERO = range(5)
 # noise_scale1..4: keeps each dimension's Perlin noise within [-1, 1].
 _SCALE = (0.0, 0.2500, 0.6616, 0.9820, 0.8344)
-
-
-@inline_kernel
-def _rot(x, k):
-    return ((x << k) | (x >> (32 - k))) & _M
-
-
-@inline_kernel
-def _final(a, b, c):
-    c = ((c ^ b) - _rot(b, 14)) & _M
-    a = ((a ^ c) - _rot(c, 11)) & _M
-    b = ((b ^ a) - _rot(a, 25)) & _M
-    c = ((c ^ b) - _rot(b, 16)) & _M
-    a = ((a ^ c) - _rot(c, 4)) & _M
-    b = ((b ^ a) - _rot(a, 14)) & _M
-    c = ((c ^ b) - _rot(b, 24)) & _M
-    return a, b, c
-
-
-@inline_kernel
-def hash_uint(kx):
-    a = b = c = (0xDEADBEEF + (1 << 2) + 13) & _M
-    a = (a + kx) & _M
-    return _final(a, b, c)[2]
-
-
-@inline_kernel
-def hash_uint2(kx, ky):
-    a = b = c = (0xDEADBEEF + (2 << 2) + 13) & _M
-    b = (b + ky) & _M
-    a = (a + kx) & _M
-    return _final(a, b, c)[2]
-
-
-@inline_kernel
-def hash_uint4(kx, ky, kz, kw):
-    a = b = c = (0xDEADBEEF + (4 << 2) + 13) & _M
-    a = (a + kx) & _M
-    b = (b + ky) & _M
-    c = (c + kz) & _M
-    # lookup3's mix(a, b, c), then the fourth key, then final.
-    a = ((a - c) & _M) ^ _rot(c, 4)
-    c = (c + b) & _M
-    b = ((b - a) & _M) ^ _rot(a, 6)
-    a = (a + c) & _M
-    c = ((c - b) & _M) ^ _rot(b, 8)
-    b = (b + a) & _M
-    a = ((a - c) & _M) ^ _rot(c, 16)
-    c = (c + b) & _M
-    b = ((b - a) & _M) ^ _rot(a, 19)
-    a = (a + c) & _M
-    c = ((c - b) & _M) ^ _rot(b, 4)
-    b = (b + a) & _M
-    a = (a + kw) & _M
-    return _final(a, b, c)[2]
 
 
 # ------------------------------------------------------------------ the offsets (seeds)
@@ -122,6 +66,17 @@ OFFSET_ND = np.array([[_offset_nd(float(s), float(k)) for k in range(4)] for s i
 
 # ------------------------------------------------------------------ Perlin noise
 @inline_kernel
+def _fade(t):
+    return t * t * t * (t * (t * 6.0 - 15.0) + 10.0)
+
+
+@inline_kernel
+def _wrap(p):
+    """fmod(p, 100000) + 0.5 beyond 1e6 (Cycles repeats the noise to keep float precision)."""
+    return np.fmod(p, 100000.0) + (0.5 if abs(p) >= 1000000.0 else 0.0)
+
+
+@inline_kernel
 def _perlin_1d(x):
     X = int(math.floor(x))
     fx = x - X
@@ -150,6 +105,28 @@ def _perlin_2d(x, y):
         i, j = k & 1, k >> 1
         g = _grad2(hash_uint2((X + i) & _M, (Y + j) & _M), fx - i, fy - j)
         total += (u if i else 1.0 - u) * (v if j else 1.0 - v) * g
+    return total
+
+
+@inline_kernel
+def _grad3(h, x, y, z):
+    h = h & 15
+    u = x if h < 8 else y
+    vt = x if (h == 12 or h == 14) else z
+    v = y if h < 4 else vt
+    return (-u if h & 1 else u) + (-v if h & 2 else v)
+
+
+@inline_kernel
+def _perlin_3d(x, y, z):
+    X, Y, Z = int(math.floor(x)), int(math.floor(y)), int(math.floor(z))
+    fx, fy, fz = x - X, y - Y, z - Z
+    u, v, t = _fade(fx), _fade(fy), _fade(fz)
+    total = 0.0
+    for k in range(8):  # trilinear blend of the eight corners' gradients
+        i, j, l = k & 1, (k >> 1) & 1, k >> 2
+        g = _grad3(hash_uint3((X + i) & _M, (Y + j) & _M, (Z + l) & _M), fx - i, fy - j, fz - l)
+        total += (u if i else 1.0 - u) * (v if j else 1.0 - v) * (t if l else 1.0 - t) * g
     return total
 
 
@@ -186,7 +163,7 @@ def snoise(dim, x, y, z, w):
     if dim == 2:
         return _SCALE[2] * _perlin_2d(_wrap(x), _wrap(y))
     if dim == 3:
-        return _SCALE[3] * perlin_3d(_wrap(x), _wrap(y), _wrap(z))
+        return _SCALE[3] * _perlin_3d(_wrap(x), _wrap(y), _wrap(z))
     return _SCALE[4] * _perlin_4d(_wrap(x), _wrap(y), _wrap(z), _wrap(w))
 
 

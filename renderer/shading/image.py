@@ -1,6 +1,7 @@
 """Image Texture lookups as Cycles' CPU image sampler does them: texel centres at
-half-integers, Closest or bilinear (Linear; Cubic is exported as Linear, warned), and the
-four extension modes. Images are rows of one texel table `texels` (P, 4) float32 RGBA;
+half-integers, Closest, bilinear (Linear) or the uniform cubic B-spline over 4x4 texels
+(Cubic, and Smart, which Cycles' CPU sampler renders as Cubic), and the four extension
+modes. Images are rows of one texel table `texels` (P, 4) float32 RGBA;
 `images` (N, 4) int32 gives each image's first texel, width, height (row-major, row 0
 at v = 0) and whether its texels are sRGB-encoded (decoded after interpolation, as
 Cycles' COMPRESS_AS_SRGB 8-bit images)."""
@@ -50,9 +51,13 @@ def _srgb_to_linear(c):
 
 
 @inline_kernel
-def image_lookup(texels, images, index, u, v, linear, ext):
-    """RGBA of image `index` at texture coordinates (u, v), scene-linear."""
-    c = _interpolate(texels, images, index, u, v, linear, ext)
+def image_lookup(texels, images, index, u, v, interpolation, ext):
+    """RGBA of image `index` at texture coordinates (u, v), scene-linear; interpolation
+    0 Closest, 1 Linear, 2 Cubic (program.INTERPOLATIONS)."""
+    if interpolation == 2:
+        c = _cubic(texels, images, index, u, v, ext)
+    else:
+        c = _interpolate(texels, images, index, u, v, interpolation == 1, ext)
     if images[index, 3] == 0:
         return c
     return (_srgb_to_linear(c[0]), _srgb_to_linear(c[1]), _srgb_to_linear(c[2]), c[3])
@@ -80,3 +85,33 @@ def _interpolate(texels, images, index, u, v, linear, ext):
             w00 * a[1] + w10 * b[1] + w01 * c[1] + w11 * d[1],
             w00 * a[2] + w10 * b[2] + w01 * c[2] + w11 * d[2],
             w00 * a[3] + w10 * b[3] + w01 * c[3] + w11 * d[3])
+
+
+@inline_kernel
+def _bspline(t):
+    """The uniform cubic B-spline's four weights at fraction t (Cycles' SET_CUBIC_SPLINE_WEIGHTS)."""
+    return ((((-1.0 / 6.0) * t + 0.5) * t - 0.5) * t + 1.0 / 6.0, ((0.5 * t - 1.0) * t) * t + 2.0 / 3.0,
+            ((-0.5 * t + 0.5) * t + 0.5) * t + 1.0 / 6.0, (1.0 / 6.0) * t * t * t)
+
+
+@inline_kernel
+def _cubic(texels, images, index, u, v, ext):
+    """Cycles' CPU interp_cubic: 4x4 texels around the point, B-spline weighted; a Clip image
+    reads zeros outside (every texel is clipped on its own)."""
+    first, width, height = images[index, 0], images[index, 1], images[index, 2]
+    ix, tx = _split(u * width - 0.5)
+    iy, ty = _split(v * height - 0.5)
+    if ext == EXT_CLIP and (ix < -2 or ix > width or iy < -2 or iy > height):
+        return _ZERO4
+    wx, wy = _bspline(tx), _bspline(ty)
+    r, g, b, a = 0.0, 0.0, 0.0, 0.0
+    for j in range(4):
+        y = _wrap(iy - 1 + j, height, ext)
+        for i in range(4):
+            w = wx[i] * wy[j]
+            c = _texel(texels, first, width, _wrap(ix - 1 + i, width, ext), y)
+            r += w * c[0]
+            g += w * c[1]
+            b += w * c[2]
+            a += w * c[3]
+    return (r, g, b, a)

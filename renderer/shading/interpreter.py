@@ -18,12 +18,12 @@ from .color import fresnel, hsl_to_rgb, hsv_to_rgb, hue_saturation_value, layer_
 from .fractal import noise_texture
 from .image import image_lookup
 from .math_ops import math_op, mix_color, vector_op
-from .noise import noise_texture_3d
 from .normals import normal_map
 from .patterns import brick, magic, wave
 from .program import I_A, I_B, I_C, I_D, I_DST, I_E, I_OP, I_P0, I_P1, I_P2, OP
+from .spectrum import spectrum_node
 from .table import P_CODE, P_INIT, P_NCODE, P_NREGS
-from .textures import checker, gradient, mapping, ramp_lookup
+from .textures import checker, curves, gradient, mapping, ramp_lookup
 from .voronoi import voronoi_texture
 from .white_noise import white_noise
 
@@ -32,11 +32,11 @@ MATH, VECTOR_MATH, MIX, MIX_FLOAT = OP["math"], OP["vector_math"], OP["mix"], OP
 MAPPING, CHECKER, IMAGE, RAMP, CURVE = OP["mapping"], OP["checker"], OP["image"], OP["ramp"], OP["curve"]
 COMBINE, COPY, INVERT, RGB_TO_BW = OP["combine"], OP["copy"], OP["invert"], OP["rgb_to_bw"]
 CLAMP, GRADIENT, GAMMA, BRIGHT_CONTRAST = OP["clamp"], OP["gradient"], OP["gamma"], OP["bright_contrast"]
-MAP_RANGE, NOISE, HSV, HSV_CONVERT = OP["map_range"], OP["noise"], OP["hsv"], OP["hsv_convert"]
+MAP_RANGE, HSV, HSV_CONVERT = OP["map_range"], OP["hsv"], OP["hsv_convert"]
 FRESNEL, LAYER_WEIGHT = OP["fresnel"], OP["layer_weight"]
 NORMAL_MAP, BUMP_EVAL, BUMP = OP["normal_map"], OP["bump_eval"], OP["bump"]
 NOISE_ND, WHITE_NOISE, VORONOI = OP["noise_nd"], OP["white_noise"], OP["voronoi"]
-WAVE, MAGIC, BRICK = OP["wave"], OP["magic"], OP["brick"]
+WAVE, MAGIC, BRICK, SPECTRUM = OP["wave"], OP["magic"], OP["brick"], OP["spectrum"]
 
 
 @inline_kernel
@@ -114,7 +114,7 @@ def run_program(st, m, regs, p, b0, b1, b2, x, n, wi, back):  # noqa: C901 - the
             regs[dst + 3] = f
         elif op == IMAGE:
             q = _v(regs, a)
-            rgba = image_lookup(texels, images, ins[I_P0], q[0], q[1], ins[I_P1] != 0, ins[I_P2])
+            rgba = image_lookup(texels, images, ins[I_P0], q[0], q[1], ins[I_P1], ins[I_P2])
             _put3(regs, dst, (rgba[0], rgba[1], rgba[2]))
             regs[dst + 3] = rgba[3]
         elif op == RAMP:
@@ -122,14 +122,8 @@ def run_program(st, m, regs, p, b0, b1, b2, x, n, wi, back):  # noqa: C901 - the
             for ch in range(4):
                 regs[dst + ch] = ramp_lookup(data, ins[I_P0], 4, ch, f, ins[I_P1] != 0)
         elif op == CURVE:
-            # RGB Curves: per channel the channel's curve, then the combined (C) curve;
-            # the factor mixes with the input colour (svm_node_curves).
-            col = _v(regs, b)
-            t = float(regs[a])
-            for ch in range(3):
-                y = ramp_lookup(data, ins[I_P0] + (ch + 1) * 256, 1, 0, col[ch], True)
-                y = ramp_lookup(data, ins[I_P0], 1, 0, y, True)
-                regs[dst + ch] = (1.0 - t) * col[ch] + t * y
+            curves(regs, dst, data, ins[I_P0], ins[I_P1], ins[I_P2] != 0, float(regs[a]), b, float(regs[c]),
+                   float(regs[ins[I_D]]))
         elif op == COMBINE:
             v = (float(regs[a]), float(regs[b]), float(regs[c]))
             _put3(regs, dst, v)
@@ -172,14 +166,6 @@ def run_program(st, m, regs, p, b0, b1, b2, x, n, wi, back):  # noqa: C901 - the
             nn = _v(regs, b)
             regs[dst] = layer_weight(float(regs[a]), wi[0] * nn[0] + wi[1] * nn[1] + wi[2] * nn[2], back,
                                      ins[I_P0] != 0)
-        elif op == NOISE:
-            q = _v(regs, a)
-            s = float(regs[b])
-            value, col = noise_texture_3d(q[0] * s, q[1] * s, q[2] * s, float(regs[b + 1]),
-                                          float(regs[b + 2]), float(regs[b + 3]), float(regs[b + 4]),
-                                          ins[I_P0] != 0)
-            regs[dst] = value
-            _put3(regs, dst + 1, col)
         elif op == NORMAL_MAP:
             _put3(regs, dst, normal_map(_v(regs, a), float(regs[b]), _v(regs, c), float(regs[ins[I_D]]),
                                         ins[I_P0], n, back))
@@ -212,6 +198,8 @@ def run_program(st, m, regs, p, b0, b1, b2, x, n, wi, back):  # noqa: C901 - the
             _put3(regs, dst, bump_normal(corner, p, ins[I_P1], x, n, _v(regs, a), float(regs[b]),
                                          float(regs[b + 1]), float(regs[b + 2]), float(regs[b + 3]),
                                          float(regs[b + 4]), ins[I_P0] != 0))
+        elif op == SPECTRUM:
+            spectrum_node(regs, dst, ins[I_P0], float(regs[a]), b)
         elif op == MAP_RANGE:
             regs[dst] = _map_range(float(regs[a]), float(regs[b]), float(regs[b + 1]), float(regs[b + 2]),
                                    float(regs[b + 3]), float(regs[b + 4]), ins[I_P0], ins[I_P1] != 0)

@@ -23,5 +23,5 @@ BLEND_TYPES = (
 GRADIENT_TYPES = ("LINEAR", "QUADRATIC", "EASING", "DIAGONAL", "RADIAL", "QUADRATIC_SPHERE", "SPHERICAL")
 MAPPING_TYPES = ("POINT", "TEXTURE", "VECTOR", "NORMAL")
 MAP_RANGE_TYPES = ("LINEAR", "STEPPED", "SMOOTHSTEP", "SMOOTHERSTEP")
-RAMP_SIZE = 256  # entries of the tables Cycles bakes Color Ramp and curves into
+RAMP_SIZE = 257  # entries of the tables Cycles bakes Color Ramp and curves into (256 steps + 1)
 NORMAL_MAP_SPACES = ("TANGENT", "OBJECT", "WORLD", "BLENDER_OBJECT", "BLENDER_WORLD")

@@ -42,9 +42,11 @@ OPCODES = (
     "mix_float",   # dst = mix of b, c by factor a (scalars; the vector Mix uses it per component)
     "mapping",     # dst(3) = Mapping type i0 of vector a, location b, rotation c, scale d
     "checker",     # dst(3) colour, dst+3 factor: Checker of vector a, colours b c, scale d
-    "image",       # dst(3) colour, dst+3 alpha: image i0 at vector a; i1 interpolation, i2 extension
+    "image",       # dst(3) colour, dst+3 alpha: image i0 at vector a; i1 interpolation (INTERPOLATIONS),
+                   # i2 extension
     "ramp",        # dst(3) colour, dst+3 alpha: 256-entry RGBA table at data[i0], factor a; i1 interpolate
-    "curve",       # dst(3): RGB Curves tables at data[i0] (4 x 256 RGB: C, R, G, B), factor a, colour b
+    "curve",       # dst(i1): RGB/Vector Curves (i1 = 3) or Float Curve (i1 = 1) of b (i1 registers),
+                   # factor a, the curves' x range [c, d]; table of 256 x i1 at data[i0]; i2 extrapolate
     "combine",     # dst(3) = (a, b, c)
     "copy",        # dst = a (i0 components)
     "invert",      # dst(3) = mix(colour b, 1 - b, factor a)
@@ -59,8 +61,6 @@ OPCODES = (
     "hsv_convert",  # dst(3) = colour a to HSV (i0 0), HSV to RGB (1), to HSL (2), HSL to RGB (3)
     "fresnel",     # dst = Fresnel of IOR a with normal b (3), the view direction and the face side
     "layer_weight",  # dst = Layer Weight of blend a with normal b: i0 0 Fresnel, 1 Facing
-    "noise",       # dst factor, dst+1..3 colour: Noise (3D fBM) of vector a; b..b+4 = scale,
-                   # detail, roughness, lacunarity, distortion; i0 normalize
     "normal_map",  # dst(3) = Normal Map of colour a, strength b, tangent c (3), bitangent sign d;
                    # i0 space (names.NORMAL_MAP_SPACES)
     "noise_nd",    # dst factor, dst+1..3 colour: Noise Texture of vector a; b..b+7 = W, scale, detail,
@@ -80,6 +80,8 @@ OPCODES = (
                    # tangent i0 (0: the point itself; shading.bump); i1 the corner-position column
     "bump",        # dst(3) = Bump of normal a; b..b+4 = height at the point, at offsets 1 and 2,
                    # strength, distance; i0 invert, i1 the corner-position column
+    "spectrum",    # dst(3) = max(M f(a), 0), M the 3x3 (rows) at b..b+8: f Blackbody of temperature a
+                   # (i0 0, linear Rec.709) or Wavelength a nm (i0 1, CIE XYZ)
 )
 OP = {name: code for code, name in enumerate(OPCODES)}
 

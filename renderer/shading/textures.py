@@ -95,3 +95,31 @@ def ramp_lookup(data, start, channels, channel, f, interpolate):
     if interpolate and t > 0.0:
         r = (1.0 - t) * r + t * float(data[start + (i + 1) * channels + channel])
     return r
+
+
+@inline_kernel
+def curve_lookup(data, start, channels, channel, f, extrapolate):
+    """A curve table's channel at f: ramp_lookup (interpolated) inside [0, 1]; outside, with
+    `extrapolate`, the line through the end's two entries (float_ramp_lookup)."""
+    if extrapolate and (f < 0.0 or f > 1.0):
+        if f < 0.0:
+            t0 = float(data[start + channel])
+            dy = t0 - float(data[start + channels + channel])
+            f = -f
+        else:
+            t0 = float(data[start + (RAMP_SIZE - 1) * channels + channel])
+            dy = t0 - float(data[start + (RAMP_SIZE - 2) * channels + channel])
+            f = f - 1.0
+        return t0 + dy * f * (RAMP_SIZE - 1)
+    return ramp_lookup(data, start, channels, channel, f, True)
+
+
+@inline_kernel
+def curves(regs, dst, data, start, channels, extrapolate, fac, src, lo, hi):
+    """RGB Curves, Vector Curves (channels 3) and Float Curve (1), as svm_node_curves and
+    svm_node_curve: each component of registers src.. looked up at its position in the
+    curves' range [lo, hi], mixed with the input by fac."""
+    for ch in range(channels):
+        x = float(regs[src + ch])
+        y = curve_lookup(data, start, channels, ch, (x - lo) / (hi - lo), extrapolate)
+        regs[dst + ch] = (1.0 - fac) * x + fac * y

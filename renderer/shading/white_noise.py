@@ -9,8 +9,7 @@ import numpy as np
 
 from renderer.kernels import inline_kernel, kernel
 
-from .fractal import hash_uint, hash_uint2, hash_uint4
-from .noise import hash_uint3
+from .hash import hash_uint, hash_uint2, hash_uint3, hash_uint4
 
 
 @inline_kernel
