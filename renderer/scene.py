@@ -19,7 +19,9 @@ import numpy as np
 
 from .shading.program import ImageTexture, ShaderProgram
 
-SCENE_FORMAT_VERSION = 1
+# 2: shader programs' opcodes were renumbered (the old Noise opcode removed): a folder written
+# as version 1 would have its programs misread, so it is refused with the version named.
+SCENE_FORMAT_VERSION = 2
 
 RGB = tuple[float, float, float]
 
