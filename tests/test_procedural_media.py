@@ -1,0 +1,131 @@
+"""Procedural media (renderer.media.procedural): a shader program gives the density, the
+majorant is the program's interval bound per cell (renderer.shading.intervals).
+
+The estimators must stay unbiased: transmittance by ratio and delta tracking matches
+exp(-sigma_t * integral of the density), the integral by a fine deterministic quadrature of
+the same program; and no density the program produces exceeds its cell's majorant."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from renderer.errors import SceneError
+from renderer.kernels.rng import path_key
+from renderer.media import compile_media, transmittance
+from renderer.media.procedural import bound_violations, evaluate_density
+from renderer.scene import Medium
+from renderer.shading.names import MAP_RANGE_TYPES, MATH_OPS
+from renderer.shading.program import INSTR, OP, ShaderProgram
+
+Z = 5.0
+
+
+def _row(op: str, dst: int, a: int = 0, b: int = 0, c: int = 0, d: int = 0, i0: int = 0,
+         i1: int = 0) -> list[int]:
+    row = [0] * INSTR.size
+    row[:10] = [OP[op], dst, a, b, c, d, 0, i0, i1, 0]
+    return row
+
+
+def cloud_program(scale: float = 2.5, detail: float = 2.5, normalize: bool = True, to_max: float = 6.0,
+                  ramp: bool = False) -> tuple[ShaderProgram, int]:
+    """Position -> Noise (fBM) -> Map Range (linear, clamped) -> [x density scale]:
+    the usual procedural cloud. Returns (program, density register)."""
+    regs = np.zeros(24, np.float32)
+    regs[3:8] = (scale, detail, 0.55, 2.0, 0.3)  # noise: scale, detail, roughness, lacunarity, distortion
+    regs[12:17] = (0.45, 0.75, 0.0, to_max, 4.0)  # map range: from, to, steps
+    regs[18] = 1.7
+    code = [_row("position", 0), _row("noise", 8, a=0, b=3, i0=int(normalize)),
+            _row("map_range", 17, a=8, b=12, i0=MAP_RANGE_TYPES.index("LINEAR"), i1=1),
+            _row("math", 19, a=17, b=18, i0=MATH_OPS.index("MULTIPLY"))]
+    data = np.zeros(0, np.float32)
+    if ramp:  # a Color Ramp after the noise: 256 RGBA entries, a bump in the middle
+        f = np.linspace(0.0, 1.0, 256)
+        table = np.stack([np.exp(-((f - 0.55) / 0.08) ** 2) * 4.0] * 4, axis=1).astype(np.float32)
+        data = table.ravel()
+        code[2] = _row("ramp", 17, a=8, i0=0, i1=1)
+    return ShaderProgram(np.array(code, np.int32), regs, np.zeros((0, 5), np.int32), data), 19
+
+
+def procedural(program: ShaderProgram, density: int, **kw) -> Medium:
+    to_world = np.eye(4)
+    to_world[:3, :3] = [[1.0, 0.3, 0.0], [0.0, 0.8, 0.0], [0.1, 0.0, 1.2]]  # sheared, not axis-aligned
+    to_world[:3, 3] = (0.2, -0.1, 0.3)
+    return Medium("cloud", "grid", sigma_a=(0.3, 0.6, 1.0), sigma_s=(0.5, 0.4, 0.2), p0=(-1.0, -1.0, -1.0),
+                  p1=(1.0, 1.0, 1.0), to_world=to_world, program=program, program_density=density, **kw)
+
+
+def _stack(m: int) -> np.ndarray:
+    s = np.full(4, -1, np.int32)
+    s[0] = m
+    return s
+
+
+def test_scenes_without_programs_carry_none():
+    grid = Medium("g", "grid", sigma_s=(1.0, 1.0, 1.0), density=np.ones((2, 2, 2), np.float32))
+    assert compile_media([grid]).programs is None
+    program, reg = cloud_program()
+    assert compile_media([grid, procedural(program, reg)]).programs is not None
+
+
+@pytest.mark.parametrize("kind", ["normalized", "fbm", "ramp"])
+def test_density_never_exceeds_its_cell_majorant(kind):
+    program, reg = cloud_program(normalize=kind != "fbm", to_max=6.0 if kind != "fbm" else 3.0,
+                                 ramp=kind == "ramp")
+    mt = compile_media([procedural(program, reg)])
+    count, worst = bound_violations(mt, 0, 200_000, seed=1)
+    assert count == 0, f"{count} densities above their cell majorant (worst excess {worst:g})"
+    assert worst < 0.0
+
+
+def _optical_depth(mt, o, d, t0, t1, n=40_000) -> float:
+    """Midpoint quadrature of the density along the ray (the program is smooth: C2 noise)."""
+    t = t0 + (np.arange(n) + 0.5) * (t1 - t0) / n
+    x = np.asarray(o)[None, :] + t[:, None] * np.asarray(d)[None, :]
+    rho = evaluate_density(mt.programs, 0, x)
+    # outside the box the density is 0: mask with the box test the kernel uses
+    to_unit = mt.params[0, -12:].astype(np.float64).reshape(3, 4)
+    u = x @ to_unit[:, :3].T + to_unit[:, 3]
+    rho = np.where(np.all((u >= 0.0) & (u <= 1.0), axis=1), rho, 0.0)
+    return float(rho.sum() * (t1 - t0) / n)
+
+
+@pytest.mark.parametrize("use_delta", [False, True])
+def test_transmittance_matches_quadrature(use_delta):
+    program, reg = cloud_program()
+    mt = compile_media([procedural(program, reg)])
+    o, d = (-1.6, 0.05, 0.35), (0.8, 0.36, 0.48)
+    t0, t1 = 0.0, 4.0
+    depth = _optical_depth(mt, o, d, t0, t1)
+    assert depth > 0.3, "the ray must cross the cloud"
+    sigma_t = np.array([0.8, 1.0, 1.2])
+    expected = np.exp(-sigma_t * depth)
+    n = 4_000
+    s = np.zeros(3)
+    s2 = np.zeros(3)
+    stack = _stack(0)
+    for i in range(n):
+        tr, _ = transmittance(mt, stack, o, d, t0, t1, np.uint64(path_key(11, i, 0)), 0, use_delta)
+        s += tr
+        s2 += np.square(tr)
+    mean = s / n
+    se = np.sqrt(np.maximum(s2 / n - mean ** 2, 0.0) / n)
+    z = (mean - expected) / se
+    assert np.all(np.abs(z) < Z), f"mean {mean} expected {expected} (z {z})"
+
+
+def test_unbounded_program_is_refused_naming_the_medium():
+    program, reg = cloud_program()
+    code = np.vstack([program.code, _row("math", 20, a=0, b=1, i0=MATH_OPS.index("DIVIDE"))])
+    bad = ShaderProgram(code, program.registers, program.bindings, program.data)
+    with pytest.raises(SceneError, match="cloud"):
+        compile_media([procedural(bad, 20)])
+
+
+def test_surface_operation_is_refused():
+    program, reg = cloud_program()
+    code = np.vstack([program.code, _row("normal", 20)])
+    bad = ShaderProgram(code, program.registers, program.bindings, program.data)
+    with pytest.raises(SceneError, match="normal"):
+        compile_media([procedural(bad, reg)])
