@@ -148,6 +148,17 @@ class SamplerNodes:
         self.row_modulo.inputs[1].default_value = ny
 
 
+def volume_info(evaluated) -> VolumeInfo:
+    """Grids and bounds of an evaluated VOLUME-type object: a Volume object, or the volume
+    a mesh object's geometry nodes output (a depsgraph instance whose original is the mesh)."""
+    grids: dict[str, GridInfo] = {}
+    for grid in evaluated.data.grids:
+        grid.load()
+        grids[grid.name] = GridInfo(grid.name, grid.data_type, np.array(grid.matrix_object, np.float64))
+    corners = np.array([tuple(c) for c in evaluated.bound_box], np.float64)
+    return VolumeInfo(grids, (corners.min(axis=0), corners.max(axis=0)))
+
+
 class GridSampler:
     """Reads grids of volume objects into dense arrays; use as a context manager.
 
@@ -211,13 +222,7 @@ class GridSampler:
         if evaluated.type != "VOLUME":
             raise ValueError(f"it is a {evaluated.type.lower()} object making volume geometry; Haze reads "
                              "the grids of Volume objects only")
-        volume = evaluated.data
-        grids: dict[str, GridInfo] = {}
-        for grid in volume.grids:
-            grid.load()
-            grids[grid.name] = GridInfo(grid.name, grid.data_type, np.array(grid.matrix_object, np.float64))
-        corners = np.array([tuple(c) for c in evaluated.bound_box], np.float64)
-        return VolumeInfo(grids, (corners.min(axis=0), corners.max(axis=0)))
+        return volume_info(evaluated)
 
     def read(self, target, grid: GridInfo, start, shape) -> np.ndarray:
         """Voxels start .. start + shape - 1 (x, y, z) of `grid`: (nz, ny, nx) float32, or

@@ -39,7 +39,7 @@ from renderer.media.bricks import SparseGrid
 from renderer.scene import Material, Medium, Mesh
 
 from .grid_fields import FieldBuilder, GridMedium, clean_grid, crop_to_voxels, evaluate_fields, shape_text
-from .grid_sampler import GridInfo, GridSampler, VolumeInfo, index_box
+from .grid_sampler import GridInfo, GridSampler, VolumeInfo, index_box, volume_info
 from .materials import MaterialLibrary
 from .messages import Messages, material_subject, object_subject
 from .smoke import CACHE_GRIDS, SmokeCache, smoke_cache
@@ -130,6 +130,10 @@ class VolumeSource:
     filepath: str = ""  # the .vdb file (this frame's, for a sequence) a modifier-free volume loads
     smoke: SmokeCache | None = None
     grid_names: dict[str, str] = field(default_factory=dict)  # material attribute -> grid in the volume
+    # Grids of a volume that a non-volume object's geometry nodes output (Volume Cube, Mesh
+    # to Volume...), read from the depsgraph instance: the sampler evaluates the original
+    # object, whose own type is not VOLUME, and reads these grids from its geometry.
+    info: VolumeInfo | None = field(default=None, compare=False)
 
 
 @dataclass
@@ -201,8 +205,9 @@ class VolumeExporter:
         data_key = original.name_full if len(original.modifiers) else "data:" + original.data.name_full
         filepath = "" if len(original.modifiers) else volume_file(obj.data)
         key = ("volume", data_key, material.name_full if material is not None else "", filepath)
+        info = volume_info(obj) if original.type != "VOLUME" else None
         return VolumeSource(key, subject, material, float(obj.data.render.clipping), target=original,
-                            filepath=filepath)
+                            filepath=filepath, info=info)
 
     def _smoke_source(self, obj) -> VolumeSource | None:
         cache = smoke_cache(obj, self.frame, self.messages)
@@ -268,7 +273,7 @@ class VolumeExporter:
             if medium is not None:
                 return medium
         target = source.target if source.smoke is None else sampler.file_volume(source.smoke.path)
-        info = sampler.inspect(target)
+        info = source.info or sampler.inspect(target)
         if not info.grids:
             self.messages.warn(source.subject, "has no grids (an empty volume or a file that did not load); "
                                                "it is not rendered")
