@@ -7,9 +7,11 @@
   Material to a Principled Volume) exports its grid (it used to be skipped).
 
 Here both are exported only. The same Blender body renders them with Cycles and Haze when
-run with render=True (for a comparison with bpy_helpers.assert_agree); that comparison did
-not finish on the loaded build machine (a cold compile of the whole tracer), so it is not
-part of the suite yet."""
+run with render=True (4 x 64 spp each, 32x32); compared with bpy_helpers.assert_agree, both
+scenes passed (cloud: means +0.12/+0.067/+0.024 %, noise sigma 0.09/0.07/0.06 %, max |block
+z| 2.52 of 44, limit 4.24). Those renders are not in the suite: their cold compile of the
+whole tracer, once with and once without programs, is far beyond the CI budget (29 min
+wall on the loaded 2-core build machine)."""
 
 from __future__ import annotations
 
