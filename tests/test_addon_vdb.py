@@ -108,6 +108,15 @@ def main():
     report["sparse"] = medium_arrays("sparse", export())
     V.SPARSE_MIN_VOXELS = 1 << 62
     report["dense"] = medium_arrays("dense", export())
+    # The same volume through a geometry-nodes modifier that passes it on: no longer a file
+    # Haze reads, so the sampler reads it, into bricks one row at a time (sampled_bricks).
+    tree = bpy.data.node_groups.new("Pass", "GeometryNodeTree")
+    tree.interface.new_socket("Geometry", in_out="INPUT", socket_type="NodeSocketGeometry")
+    tree.interface.new_socket("Geometry", in_out="OUTPUT", socket_type="NodeSocketGeometry")
+    tree.links.new(tree.nodes.new("NodeGroupInput").outputs[0], tree.nodes.new("NodeGroupOutput").inputs[0])
+    bpy.data.objects["Cloud"].modifiers.new("Pass", "NODES").node_group = tree
+    V.SPARSE_MIN_VOXELS = 0
+    report["sampled"] = medium_arrays("sampled", export())
     # A two-frame sequence: frame f loads seq_000f.vdb (another cloud each).
     bpy.ops.wm.read_factory_settings(use_empty=True)
     H.enable_dev_addon()
@@ -168,6 +177,25 @@ def test_sparse_read_equals_the_samplers_dense_read(exported):
     # boundary boxes both stop at the outermost non-zero voxels' neighbours' centres.
     stored, total = arrays["sparse.bricks"]
     assert 0 < stored < total  # empty bricks are not stored
+
+
+@pytest.mark.bpy
+def test_sampler_reads_a_node_volume_into_bricks(exported):
+    """A volume that is not a file (here the file's volume passed through a geometry-nodes
+    modifier) is read by the geometry-node sampler brick row by brick row: the same voxels
+    at the same index positions as the file holds, the same transform and coefficients,
+    empty bricks not kept. (Its index box comes from the evaluated volume's bounds, a few
+    voxels wider than the file's.)"""
+    report, arrays = exported
+    assert arrays["sampled.sparse"]
+    values = arrays["values"]
+    np.testing.assert_array_equal(placed(arrays, "sampled", (-7, 5, 11), values.shape, pad=12),
+                                  written(values, pad=12))
+    assert report["sampled"] == []
+    for key in ("to_world", "coefficients", "scale_g"):
+        np.testing.assert_allclose(arrays[f"sampled.{key}"], arrays[f"sparse.{key}"], rtol=1e-6, atol=1e-9)
+    stored, total = arrays["sampled.bricks"]
+    assert 0 < stored < total
 
 
 @pytest.mark.bpy
