@@ -95,6 +95,8 @@ SCENES: dict[str, BenchScene] = {s.name: s for s in (
                       "wall, noise-marbled cube"),
     _built_in_blender("hdri", "floor, diffuse and rough metal balls under an HDRI with a 2x2-pixel sun, "
                       "built in Blender"),
+    _built_in_blender("procedural_cloud", "procedural cloud built in Blender: Noise -> Map Range -> "
+                      "Principled Volume Density in a cube, sun and sky"),
 )}
 SETTING_NOTES = {
     "default": "ratio tracking, spectral MIS, majorant grid, equiangular (the defaults)",
