@@ -13,6 +13,7 @@ import pytest
 from renderer.errors import SceneError
 from renderer.kernels.rng import path_key
 from renderer.media import compile_media, transmittance
+from renderer.media.layout import MediaTable, ProceduralMediaTable
 from renderer.media.procedural import bound_violations, evaluate_density
 from renderer.scene import Medium
 from renderer.shading.names import MAP_RANGE_TYPES, MATH_OPS
@@ -62,11 +63,13 @@ def _stack(m: int) -> np.ndarray:
     return s
 
 
-def test_scenes_without_programs_carry_none():
+def test_only_scenes_with_programs_get_the_procedural_table_type():
+    """Scenes without procedural media keep the plain MediaTable type, so their kernels
+    compile exactly as before; a procedural medium makes the table a type of its own."""
     grid = Medium("g", "grid", sigma_s=(1.0, 1.0, 1.0), density=np.ones((2, 2, 2), np.float32))
-    assert compile_media([grid]).programs is None
+    assert type(compile_media([grid])) is MediaTable
     program, reg = cloud_program()
-    assert compile_media([grid, procedural(program, reg)]).programs is not None
+    assert type(compile_media([grid, procedural(program, reg)])) is ProceduralMediaTable
 
 
 @pytest.mark.parametrize("kind", ["normalized", "fbm", "ramp"])

@@ -9,8 +9,10 @@ volume only the geometry-node sampler can read. One fresh Python process with bp
 it evaluates the volume, then exports the scene (addon.export.scene.export_scene, this
 checkout's add-on, or --repo another checkout's), and prints the process's RSS before the
 export and its peak RSS during the export (Linux: the peak is reset through
-/proc/self/clear_refs first, so Blender's own evaluation of the cube does not count), the
-export's time and how the density was stored. Run it on two checkouts to compare.
+/proc/self/clear_refs first, so Blender's evaluation of the cube before the export does not
+count; the sampler's own evaluation of it, in its temporary scene, does), the peak of the
+Python and numpy allocations during the export (tracemalloc: Haze's arrays without
+Blender's), the export's time and how the density was stored. Run it on two checkouts to compare.
 """
 
 from __future__ import annotations
@@ -26,7 +28,7 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 
 SCRIPT = r'''
-import json, sys, time
+import json, sys, time, tracemalloc
 sys.path.insert(0, {repo!r})
 import bpy
 import numpy as np
@@ -104,16 +106,20 @@ obj.evaluated_get(depsgraph)
 from addon.export.scene import export_scene  # noqa: E402
 reset_peak()
 before = status_mb("VmRSS")
+tracemalloc.start()
 start = time.perf_counter()
 exported = export_scene(depsgraph, render_depsgraph=False)
 seconds = time.perf_counter() - start
 peak = status_mb("VmHWM")
+arrays_peak = tracemalloc.get_traced_memory()[1] / 2**20
+tracemalloc.stop()
 (medium,) = exported.scene.media
 grid = medium.density
 stored = (f"sparse, {{len(grid.bricks)}} of {{grid.index.size}} bricks" if hasattr(grid, "bricks")
           else f"dense {{tuple(grid.shape)}}")
 print(json.dumps({{"rss_before_export_mb": round(before), "peak_during_export_mb": round(peak),
                   "export_peak_increase_mb": round(peak - before),
+                  "python_numpy_peak_mb": round(arrays_peak),
                   "export_s": round(seconds, 2), "density": stored, "warnings": exported.warnings}}))
 '''
 

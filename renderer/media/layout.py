@@ -45,8 +45,8 @@ media; a medium id is its index in the scene's list.
                                    cell by regular tracking (exact optical depth, regular.py)
                                    rather than against its bound
     scratch   (MAX_STACK, DDA.size) float64  one walker row per stack entry (majorant.py)
-    programs  None, or the procedural media's programs and a register scratch (procedural.py);
-              None compiles no program evaluation into the kernels
+    programs  ProceduralMediaTable only: the procedural media's programs and a scratch to run
+              them in (procedural.DensityPrograms)
 
 A few wide arrays rather than one per field: every non-inlined call passes each array of
 the tuple, so a 15-array table made a trilinear lookup ~5x slower. A homogeneous medium has
@@ -61,7 +61,6 @@ import numpy as np
 
 from renderer.layout import Layout
 from renderer.scene import MAX_STACK, MEDIUM_TYPES
-from renderer.shading.table import PROG
 
 MEDIUM_HOMOGENEOUS = MEDIUM_TYPES["homogeneous"]
 MEDIUM_GRID = MEDIUM_TYPES["grid"]
@@ -167,7 +166,7 @@ class ProceduralMediaTable(NamedTuple):
     brick_index: np.ndarray
     maj_data: np.ndarray
     scratch: np.ndarray
-    programs: tuple
+    programs: tuple  # a procedural.DensityPrograms
 
 
 class MediaData(NamedTuple):
@@ -178,7 +177,7 @@ class MediaData(NamedTuple):
     grid_data: np.ndarray
     brick_index: np.ndarray
     maj_data: np.ndarray
-    programs: tuple | None = None  # procedural media's program tables (procedural.py)
+    programs: tuple | None = None  # procedural media's program tables (procedural.build_program_tables)
 
     @property
     def has_grids(self) -> bool:
@@ -188,15 +187,12 @@ class MediaData(NamedTuple):
     def with_scratch(self, scratch: np.ndarray) -> MediaTable:
         """The kernels' argument over these tables, walking the majorant grid in `scratch`."""
         if self.programs is None:
-            return MediaTable(self.params, self.index, self.grid_data, self.brick_index, self.maj_data, scratch)
+            return MediaTable(self.params, self.index, self.grid_data, self.brick_index, self.maj_data,
+                              scratch)
+        from renderer.media.procedural import program_scratch  # (procedural.py imports this module)
+
         return ProceduralMediaTable(self.params, self.index, self.grid_data, self.brick_index, self.maj_data,
-                                    scratch, register_scratch(self.programs))
-
-
-def register_scratch(programs: tuple) -> tuple:
-    """The procedural programs with a register file of the tracer's own to run them in."""
-    nregs = int(programs[0][0][:, PROG.offset("nregs")].max())
-    return programs + (np.zeros(max(1, nregs), np.float32),)
+                                    scratch, program_scratch(self.programs))
 
 
 def dda_scratch() -> np.ndarray:

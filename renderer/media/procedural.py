@@ -20,25 +20,26 @@ bound_violations() checks the bound empirically (tests).
 Tables (MediaData.programs, None when no medium is procedural): the interpreter's shading
 tuple over the media's programs (one program per procedural medium, shading.table layout),
 and per program the register that holds its density. MediaData.with_scratch adds a
-register scratch and gives a ProceduralMediaTable (programs = (tables, registers,
-scratch)), a type of its own: scenes without procedural media keep the plain MediaTable,
-for which program_density compiles to a constant, so they compile exactly the kernels they
-did before; only a scene with a procedural medium compiles its trackers for the new type.
+scratch and gives a ProceduralMediaTable (programs: a DensityPrograms), a type of its own:
+scenes without procedural media keep the plain MediaTable, for which program_density
+compiles to a constant, so they compile exactly the kernels they did before; only a scene
+with a procedural medium compiles its trackers for the new type. The program itself runs
+in shading.evaluate's entry, compiled once for surface programs and media alike.
 """
 
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
-
 from numba.extending import overload
 
 from renderer.errors import SceneError
-from renderer.kernels import JIT_OPTIONS, kernel
-from renderer.media.layout import I_PROGRAM
+from renderer.kernels import JIT_OPTIONS, inline_kernel
+from renderer.media.layout import CELL_DENSITY_BOUND, I_MAJ_DIMS, I_MAJ_OFFSET, I_PROGRAM, P_TO_UNIT
 from renderer.scene import Medium
-from renderer.shading.interpreter import run_program
+from renderer.shading.evaluate import evaluate_points
 from renderer.shading.intervals import run_intervals
 from renderer.shading.program import BIND, INSTR, OP, OPCODES, ShaderProgram
 from renderer.shading.table import PROG
@@ -46,6 +47,7 @@ from renderer.shading.table import PROG
 PROC_CELLS = 16
 CELL_PAD = 0.01
 BOUND_PAD = 1e-5
+FLOAT32_PAD = 2.0 ** -22  # relative: more than float32's rounding of a coordinate (2^-24)
 # Operations that need a surface (UVs, normals, the view) or data a medium has not.
 SURFACE_OPS = frozenset(("attribute", "normal", "fresnel", "layer_weight", "image"))
 _OVERLOAD_OPTIONS = {k: v for k, v in JIT_OPTIONS.items() if k != "cache"}
@@ -64,7 +66,9 @@ def check_program(program: ShaderProgram, density: int, path: str) -> None:
 
 
 def build_program_tables(programs: list[ShaderProgram], density_regs: list[int]) -> tuple:
-    """(shading tuple, density registers (K,) int32) for the interpreter (shading.table)."""
+    """(shading tuple, density registers (K,) int64): MediaData.programs. The tuple has the
+    types of shading.table's (ShadingTables.arrays), so shading.evaluate's entry, compiled
+    for surface programs already, runs these too."""
     progs = np.zeros((len(programs), PROG.size), np.int32)
     code, init, data = [], [], []
     counts = [0, 0, 0]
@@ -84,13 +88,14 @@ def build_program_tables(programs: list[ShaderProgram], density_regs: list[int])
     st = (progs, np.ascontiguousarray(np.concatenate(code)), np.concatenate(init), np.concatenate(data),
           np.zeros((1, BIND.size), np.int32), np.zeros((1, 3, 1), np.float32), np.zeros((1, 4), np.float32),
           np.zeros((1, 4), np.int32))
-    return st, np.asarray(density_regs, np.int32)
+    return st, np.asarray(density_regs, np.int64)
 
 
 def cell_boxes(unit_to_world: np.ndarray, cells: int = PROC_CELLS) -> tuple[np.ndarray, np.ndarray]:
     """World-space AABBs ((cells^3, 3) lo and hi, x fastest) of the unit box's cells, each
     grown by CELL_PAD of its size: the affine image of a box is inside the AABB of its
-    eight corners."""
+    eight corners. Each AABB is grown again by FLOAT32_PAD of its coordinates' magnitude:
+    the program runs at the point rounded to float32 (one half ulp, 2^-24 relative, away)."""
     k = np.arange(cells, dtype=np.float64)
     lo1 = (k - CELL_PAD) / cells
     hi1 = (k + 1.0 + CELL_PAD) / cells
@@ -104,7 +109,7 @@ def cell_boxes(unit_to_world: np.ndarray, cells: int = PROC_CELLS) -> tuple[np.n
         w = u @ lin.T + off
         lo = np.minimum(lo, w)
         hi = np.maximum(hi, w)
-    return lo, hi
+    return lo - np.abs(lo) * FLOAT32_PAD, hi + np.abs(hi) * FLOAT32_PAD
 
 
 def density_bounds(med: Medium, unit_to_world: np.ndarray, path: str, cells: int = PROC_CELLS) -> np.ndarray:
@@ -119,16 +124,47 @@ def density_bounds(med: Medium, unit_to_world: np.ndarray, path: str, cells: int
     return bound.reshape(cells, cells, cells).astype(np.float32)
 
 
-@kernel
+class DensityPrograms(NamedTuple):
+    """ProceduralMediaTable.programs: MediaData.programs (the shading tuple and the density
+    register of each program) with the scratch that shading.evaluate's entry runs one point
+    in, the tracer's own (program_scratch): registers, and one row of triangle -1, unused
+    barycentrics and normal, the point (float32, as Cycles') and the density out."""
+
+    tables: tuple
+    density: np.ndarray  # (K,) int64
+    regs: np.ndarray  # (R,) float32
+    tri: np.ndarray  # (1,) int32
+    bary: np.ndarray  # (1, 3) float32
+    x: np.ndarray  # (1, 3) float32
+    n: np.ndarray  # (1, 3) float32
+    out: np.ndarray  # (1, 1) float32
+
+
+def program_scratch(programs: tuple) -> DensityPrograms:
+    """MediaData.programs with a scratch of its own (see DensityPrograms)."""
+    tables, density = programs
+    nregs = int(tables[0][:, PROG.offset("nregs")].max())
+    return DensityPrograms(tables, density, np.zeros(max(1, nregs), np.float32), np.full(1, -1, np.int32),
+                           np.zeros((1, 3), np.float32), np.zeros((1, 3), np.float32),
+                           np.array([[0.0, 0.0, 1.0]], np.float32), np.zeros((1, 1), np.float32))
+
+
+@inline_kernel
 def _run(programs, k, x):
-    # A called function, not inlined: medium_density is inlined at every density lookup of
-    # the tracker, and the whole interpreter at each of them made delta_track's machine
-    # code 4x larger (3.2 MB against 0.8 MB) and its cold compile many times slower.
-    st, dens, regs = programs
-    z = (0.0, 0.0, 1.0)
-    run_program(st, k, regs, -1, 0.0, 0.0, 0.0, x, z, z, False)
-    rho = float(regs[dens[k]])
-    return rho if rho > 0.0 else 0.0  # Principled Volume clamps density at 0 (NaN too)
+    """Program k's density at world point x, clamped at 0 as Principled Volume clamps it (NaN
+    too). It runs through shading.evaluate's entry, a called function with the surface
+    tables' types: the interpreter is compiled once for both (surface programs and this),
+    and not inlined into the trackers at every density lookup (that made delta_track's
+    machine code 4x larger and its cold compile many times slower)."""
+    xs = programs.x
+    xs[0, 0] = x[0]
+    xs[0, 1] = x[1]
+    xs[0, 2] = x[2]
+    one = np.int64(1)
+    evaluate_points(programs.tables, k, programs.tri, programs.bary, xs, programs.n, programs.regs,
+                    programs.density[k], one, programs.out)
+    rho = float(programs.out[0, 0])
+    return rho if rho > 0.0 else 0.0
 
 
 def program_density(mt, m, u, x):
@@ -156,25 +192,23 @@ def _program_density(mt, m, u, x):
     return impl
 
 
-@kernel
-def _densities(programs, k, x, out):
-    for i in range(x.shape[0]):
-        out[i] = _run(programs, k, (float(x[i, 0]), float(x[i, 1]), float(x[i, 2])))
-
-
-def evaluate_density(programs: tuple, k: int, points: np.ndarray) -> np.ndarray:
-    """(N,) density of program k at world points (N, 3), ignoring the box (tests and tools)."""
-    out = np.zeros(len(points), np.float64)
-    _densities(programs, np.int64(k), np.ascontiguousarray(points, np.float64), out)
-    return out
+def evaluate_density(programs: DensityPrograms, k: int, points: np.ndarray) -> np.ndarray:
+    """(N,) density of program k at world points (N, 3), ignoring the box, as the trackers
+    get it (_run: float32 points, clamped at 0), through the same compiled entry (tests, tools)."""
+    n = len(points)
+    out = np.zeros((n, 1), np.float32)
+    x = np.ascontiguousarray(points, np.float32)
+    normals = np.repeat(programs.n, n, axis=0)
+    evaluate_points(programs.tables, np.int64(k), np.full(n, -1, np.int32), np.zeros((n, 3), np.float32), x,
+                    normals, programs.regs, np.int64(programs.density[k]), np.int64(1), out)
+    rho = out[:, 0].astype(np.float64)
+    return np.where(rho > 0.0, rho, 0.0)
 
 
 def bound_violations(mt, m: int, n: int, seed: int = 0) -> tuple[int, float]:
     """(count, worst excess) of points where procedural medium m's density exceeds its cell's
     majorant, over n random points of its box, half of them on cell faces (where DDA
     rounding puts tentative collisions). mt: a ProceduralMediaTable."""
-    from renderer.media.layout import CELL_DENSITY_BOUND, I_MAJ_DIMS, I_MAJ_OFFSET, I_PROGRAM, P_TO_UNIT
-
     rng = np.random.default_rng(seed)
     dims = mt.index[m, I_MAJ_DIMS:I_MAJ_DIMS + 3].astype(np.int64)
     u = rng.random((n, 3))
