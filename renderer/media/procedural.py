@@ -22,7 +22,8 @@ tuple over the media's programs (one program per procedural medium, shading.tabl
 and per program the register that holds its density. MediaData.with_scratch adds a
 scratch and gives a ProceduralMediaTable (programs: a DensityPrograms), a type of its own:
 scenes without procedural media keep the plain MediaTable, for which program_density
-compiles to a constant, so they compile exactly the kernels they did before; only a scene
+compiles to a constant (one trivial extra compile), so their kernels are the ones they had
+before procedural media, with the same types; only a scene
 with a procedural medium compiles its trackers for the new type. The program itself runs
 in shading.evaluate's entry, compiled once for surface programs and media alike.
 """
