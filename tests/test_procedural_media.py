@@ -1,9 +1,13 @@
 """Procedural media (renderer.media.procedural): a shader program gives the density, the
 majorant is the program's interval bound per cell (renderer.shading.intervals).
 
-The estimators must stay unbiased: transmittance by ratio and delta tracking matches
-exp(-sigma_t * integral of the density), the integral by a fine deterministic quadrature of
-the same program; and no density the program produces exceeds its cell's majorant."""
+The estimators stay unbiased if no density the program produces exceeds its cell's
+majorant: checked here, on the density the trackers get (shading.evaluate's entry, which
+the suite compiles for surface programs anyway, so these tests compile nothing of their
+own). That the trackers then match exp(-sigma_t * integral of the density) is checked by
+tools/procedural_tracking_check.py (ratio and delta tracking against a quadrature of the
+same program): it compiles the trackers for the procedural table type, about 5 min of CPU
+on a cold cache, beyond the suite's budget."""
 
 from __future__ import annotations
 
@@ -11,15 +15,12 @@ import numpy as np
 import pytest
 
 from renderer.errors import SceneError
-from renderer.kernels.rng import path_key
-from renderer.media import compile_media, transmittance
+from renderer.media import compile_media
 from renderer.media.layout import MediaTable, ProceduralMediaTable
-from renderer.media.procedural import bound_violations, evaluate_density
+from renderer.media.procedural import bound_violations
 from renderer.scene import Medium
 from renderer.shading.names import MAP_RANGE_TYPES, MATH_OPS
 from renderer.shading.program import INSTR, OP, ShaderProgram
-
-Z = 5.0
 
 
 def _row(op: str, dst: int, a: int = 0, b: int = 0, c: int = 0, d: int = 0, i0: int = 0,
@@ -57,12 +58,6 @@ def procedural(program: ShaderProgram, density: int, **kw) -> Medium:
                   p1=(1.0, 1.0, 1.0), to_world=to_world, program=program, program_density=density, **kw)
 
 
-def _stack(m: int) -> np.ndarray:
-    s = np.full(4, -1, np.int32)
-    s[0] = m
-    return s
-
-
 def test_only_scenes_with_programs_get_the_procedural_table_type():
     """Scenes without procedural media keep the plain MediaTable type, so their kernels
     compile exactly as before; a procedural medium makes the table a type of its own."""
@@ -80,42 +75,6 @@ def test_density_never_exceeds_its_cell_majorant(kind):
     count, worst = bound_violations(mt, 0, 200_000, seed=1)
     assert count == 0, f"{count} densities above their cell majorant (worst excess {worst:g})"
     assert worst < 0.0
-
-
-def _optical_depth(mt, o, d, t0, t1, n=40_000) -> float:
-    """Midpoint quadrature of the density along the ray (the program is smooth: C2 noise)."""
-    t = t0 + (np.arange(n) + 0.5) * (t1 - t0) / n
-    x = np.asarray(o)[None, :] + t[:, None] * np.asarray(d)[None, :]
-    rho = evaluate_density(mt.programs, 0, x)
-    # outside the box the density is 0: mask with the box test the kernel uses
-    to_unit = mt.params[0, -12:].astype(np.float64).reshape(3, 4)
-    u = x @ to_unit[:, :3].T + to_unit[:, 3]
-    rho = np.where(np.all((u >= 0.0) & (u <= 1.0), axis=1), rho, 0.0)
-    return float(rho.sum() * (t1 - t0) / n)
-
-
-@pytest.mark.parametrize("use_delta", [False, True])
-def test_transmittance_matches_quadrature(use_delta):
-    program, reg = cloud_program()
-    mt = compile_media([procedural(program, reg)])
-    o, d = (-1.6, 0.05, 0.35), (0.8, 0.36, 0.48)
-    t0, t1 = 0.0, 4.0
-    depth = _optical_depth(mt, o, d, t0, t1)
-    assert depth > 0.3, "the ray must cross the cloud"
-    sigma_t = np.array([0.8, 1.0, 1.2])
-    expected = np.exp(-sigma_t * depth)
-    n = 4_000
-    s = np.zeros(3)
-    s2 = np.zeros(3)
-    stack = _stack(0)
-    for i in range(n):
-        tr, _ = transmittance(mt, stack, o, d, t0, t1, np.uint64(path_key(11, i, 0)), 0, use_delta)
-        s += tr
-        s2 += np.square(tr)
-    mean = s / n
-    se = np.sqrt(np.maximum(s2 / n - mean ** 2, 0.0) / n)
-    z = (mean - expected) / se
-    assert np.all(np.abs(z) < Z), f"mean {mean} expected {expected} (z {z})"
 
 
 def test_unbounded_program_is_refused_naming_the_medium():
