@@ -105,6 +105,8 @@ SCENES: dict[str, BenchScene] = {s.name: s for s in (
                       "Volume, sigma_a 90, sigma_s 10) in the Cornell box", MEDIA_BOUNCES, "smoke_ball"),
     _built_in_blender("fire_ball_blender", "Fig. 7 fire ball as a Blender Volume object (blackbody "
                       "temperature and smoke grids) around a rough metal bust", MEDIA_BOUNCES, "fire_ball"),
+    _built_in_blender("procedural_cloud", "procedural cloud built in Blender: Noise -> Map Range -> "
+                      "Principled Volume Density in a cube, sun and sky"),
 )}
 SETTING_NOTES = {
     "default": "ratio tracking, spectral MIS, majorant grid, equiangular (the defaults)",

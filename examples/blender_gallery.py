@@ -18,6 +18,8 @@ the same ones). Scenes (figures of seed/volumetric-path-tracing.txt):
   underwater                                Fig. 8: a glass sphere full of water
   cloud                                     Fig. 2's idea: a cloud imported from a pbrt-v3
                                             'heterogeneous' medium file, under sun and sky
+  procedural_cloud                          a cube whose Principled Volume Density is Noise
+                                            through Map Range (a procedural medium), sun and sky
 
 and two scenes whose look comes from shader nodes (examples/blender_materials.py):
 
@@ -60,7 +62,8 @@ from examples.scenes import FIG1_SIGMA_A, FIG1_SIGMA_S, icosphere  # noqa: E402
 OUT = REPO / "out" / "blender_gallery"
 PREVIEW_SAMPLES = {  # samples per pixel at the preview size: each scene well under 2 minutes
     "fog_isotropic": 512, "fog_backward": 512, "fog_forward": 512, "smoke_ball": 256, "yellow_smoke": 256,
-    "fire_ball": 256, "underwater": 512, "cloud": 128, "textured_box": 256, "hdri": 256,
+    "fire_ball": 256, "underwater": 512, "cloud": 128, "procedural_cloud": 128, "textured_box": 256,
+    "hdri": 256,
 }
 MAX_BOUNCES = {"fog_isotropic": 4, "fog_backward": 4, "fog_forward": 4}  # Fig. 1's depth; others 16
 MEDIA_BOUNCES = 16
@@ -282,6 +285,47 @@ def cloud(size: int, folder: Path) -> bpy.types.Scene:
     return use_haze(scene, size, MEDIA_BOUNCES)
 
 
+def procedural_cloud(size: int) -> bpy.types.Scene:
+    """The usual procedural cloud (issue 18 item 4): a cube whose material's Principled
+    Volume Density is Noise (Object coordinates) through Map Range, under a sun and a blue
+    sky, over a grey ground. Haze renders it as a procedural medium (renderer.media.procedural)."""
+    scene = C.clear_scene()
+    material, tree, output = C.node_material("Procedural Cloud")
+    n, link = tree.nodes.new, tree.links.new
+    coordinates = n("ShaderNodeTexCoord")
+    noise = n("ShaderNodeTexNoise")
+    for socket, value in (("Scale", 1.5), ("Detail", 3.0), ("Roughness", 0.55)):
+        noise.inputs[socket].default_value = value
+    ranged = n("ShaderNodeMapRange")
+    for socket, value in (("From Min", 0.45), ("From Max", 0.75), ("To Min", 0.0), ("To Max", 8.0)):
+        ranged.inputs[socket].default_value = value
+    volume = n("ShaderNodeVolumePrincipled")
+    volume.inputs["Color"].default_value = (0.9, 0.9, 0.9, 1.0)
+    link(coordinates.outputs["Object"], noise.inputs["Vector"])
+    link(noise.outputs["Fac"], ranged.inputs["Value"])
+    link(ranged.outputs["Result"], volume.inputs["Density"])
+    link(volume.outputs["Volume"], output.inputs["Volume"])
+    cube = C.box("Cloud", (0.0, 0.0, 0.0), 1.0, material)
+    cube.location, cube.scale = (0.0, 1.0, 1.0), (1.6, 1.0, 0.7)
+    cube.rotation_euler = (0.0, 0.0, math.radians(20.0))
+    C.quad("Ground", [(-30, -30, 0), (30, -30, 0), (30, 30, 0), (-30, 30, 0)],
+           C.diffuse_material("Ground", (0.35, 0.35, 0.33)))
+    sun = bpy.data.lights.new("Sun", "SUN")
+    sun.energy = 3.0
+    sun.angle = math.radians(2.0)
+    sun_object = bpy.data.objects.new("Sun", sun)
+    sun_object.rotation_euler = (math.radians(40.0), 0.0, math.radians(30.0))
+    scene.collection.objects.link(sun_object)
+    world = bpy.data.worlds.new("Sky")
+    C.ensure_nodes(world)
+    background = world.node_tree.nodes["Background"]
+    background.inputs["Color"].default_value = (0.35, 0.55, 0.9, 1.0)
+    background.inputs["Strength"].default_value = 0.6
+    scene.world = world
+    C.add_camera(scene, (0.0, -4.2, 1.0), (90.0, 0.0, 0.0), lens=26.0)
+    return use_haze(scene, size, MEDIA_BOUNCES)
+
+
 def build(name: str, size: int, folder: Path) -> bpy.types.Scene:
     builders = {
         "fog_isotropic": lambda: fog(size, 0.0),
@@ -292,6 +336,7 @@ def build(name: str, size: int, folder: Path) -> bpy.types.Scene:
         "fire_ball": lambda: fire_ball(size, folder),
         "underwater": lambda: underwater(size),
         "cloud": lambda: cloud(size, folder),
+        "procedural_cloud": lambda: procedural_cloud(size),
         "textured_box": lambda: use_haze(M.textured_cornell(size), size, 3),
         "hdri": lambda: use_haze(M.hdri_scene(size, folder), size, 3),
     }

@@ -289,6 +289,10 @@ class Medium:
     Emission is a source per unit length (Cycles' convention): along a ray a path gains
     the integral of T(t) * emission(t) dt. With `flame`, emission is multiplied by it;
     with `temperature` (kelvin) blackbody radiance times `blackbody_intensity` is added.
+
+    Procedural (a grid medium with `program` instead of `density`): the density at a world
+    point is register `program_density` of `program` run there, clamped at 0, inside the
+    box p0..p1 (0 outside); renderer.media.procedural bounds it per majorant cell.
     """
 
     name: str
@@ -308,6 +312,8 @@ class Medium:
     flame: np.ndarray | None = None  # (nz', ny', nx') float32 >= 0, scales `emission`
     temperature: np.ndarray | None = None  # (nz'', ny'', nx'') float32 kelvin >= 0
     blackbody_intensity: float = 0.0
+    program: ShaderProgram | None = None  # procedural density (grid media without `density`)
+    program_density: int = 0  # the program's register holding the density
 
 
 @dataclass

@@ -420,9 +420,18 @@ def _check_medium(medium: Medium, path: str) -> None:
             require(
                 not carries, f"{path}.{name}", "only grid media take grid arrays (type is 'homogeneous')"
             )
+        require(medium.program is None, f"{path}.program",
+                "only grid media take a program (type is 'homogeneous')")
         _check_medium_products(medium, path, 1.0, 1.0, 0.0)
         return
-    require(medium.density is not None, f"{path}.density", "required for grid media")
+    procedural = medium.program is not None
+    require(medium.density is not None or procedural, f"{path}.density",
+            "required for grid media (or a program, for a procedural density)")
+    require(not (procedural and medium.density is not None), f"{path}.program",
+            "a grid medium takes a density grid or a program, not both")
+    if procedural:
+        require(medium.flame is None and medium.temperature is None, f"{path}.program",
+                "a procedural medium takes no flame or temperature grid")
     for name in GRID_ARRAYS:
         if getattr(medium, name) is not None:
             _check_grid_array(getattr(medium, name), f"{path}.{name}")
@@ -431,6 +440,7 @@ def _check_medium(medium: Medium, path: str) -> None:
     _check_grid_box(medium, path)
     flame = _grid_max(medium.flame, 1.0)
     hottest = _grid_max(medium.temperature, 0.0)
+    # (a procedural density's bound is checked where it is built: renderer.media.procedural)
     _check_medium_products(medium, path, _grid_max(medium.density, 0.0), flame, hottest)
 
 

@@ -172,6 +172,15 @@ def main():
     report["sparse"] = medium_arrays("sparse", export())
     V.SPARSE_MIN_VOXELS = 1 << 62
     report["dense"] = medium_arrays("dense", export())
+    # The same volume through a geometry-nodes modifier that passes it on: no longer a file
+    # Haze reads, so the sampler reads it, into bricks one row at a time (sampled_bricks).
+    tree = bpy.data.node_groups.new("Pass", "GeometryNodeTree")
+    tree.interface.new_socket("Geometry", in_out="INPUT", socket_type="NodeSocketGeometry")
+    tree.interface.new_socket("Geometry", in_out="OUTPUT", socket_type="NodeSocketGeometry")
+    tree.links.new(tree.nodes.new("NodeGroupInput").outputs[0], tree.nodes.new("NodeGroupOutput").inputs[0])
+    bpy.data.objects["Cloud"].modifiers.new("Pass", "NODES").node_group = tree
+    V.SPARSE_MIN_VOXELS = 0
+    report["sampled"] = medium_arrays("sampled", export())
     # A fire: density, flame and temperature grids (the flame and heat inside the smoke).
     bpy.ops.wm.read_factory_settings(use_empty=True)
     H.enable_dev_addon()
@@ -252,6 +261,25 @@ def test_sparse_read_equals_the_samplers_dense_read(exported):
 
 
 @pytest.mark.bpy
+def test_sampler_reads_a_node_volume_into_bricks(exported):
+    """A volume that is not a file (here the file's volume passed through a geometry-nodes
+    modifier) is read by the geometry-node sampler brick row by brick row: the same voxels
+    at the same index positions as the file holds, the same transform and coefficients,
+    empty bricks not kept. (Its index box comes from the evaluated volume's bounds, a few
+    voxels wider than the file's.)"""
+    report, arrays = exported
+    assert arrays["sampled.sparse"]
+    values = arrays["values"]
+    np.testing.assert_array_equal(placed(arrays, "sampled", (-7, 5, 11), values.shape, pad=12),
+                                  written(values, pad=12))
+    assert report["sampled"] == []
+    for key in ("to_world", "coefficients", "scale_g"):
+        np.testing.assert_allclose(arrays[f"sampled.{key}"], arrays[f"sparse.{key}"], rtol=1e-6, atol=1e-9)
+    stored, total = arrays["sampled.bricks"]
+    assert 0 < stored < total
+
+
+@pytest.mark.bpy
 def test_vdb_sequence_exports_each_frames_file(exported):
     report, arrays = exported
     for frame in (1, 2):
@@ -309,14 +337,14 @@ def test_a_smoke_domain_cache_is_read_sparsely_as_the_sampler_reads_it(exported)
 def test_a_vdb_slab_is_cleaned_as_clean_grid_cleans_a_grid():
     """vdb_reader's in-place cleaning: NaN, infinite, negative and clipped voxels read 0,
     counted in the slab's own 8 layers (the ninth is the next row's first)."""
-    from addon.export.vdb_reader import _cleaned
+    from addon.export.vdb_reader import clean_slab
 
     rng = np.random.default_rng(7)
     slab = rng.uniform(-0.5, 2.0, (9, 10, 12)).astype(np.float32)
     slab.flat[rng.choice(slab.size, 40, replace=False)] = [np.nan, np.inf, -np.inf, -0.0] * 10
     for clipping in (0.0, 0.3):
         counts = [0, 0]
-        got = _cleaned(slab.copy(), clipping, counts)
+        got = clean_slab(slab.copy(), clipping, counts)
         values = np.where(np.isfinite(slab), slab, 0.0)
         keep = values >= clipping if clipping > 0.0 else values > 0.0
         np.testing.assert_array_equal(got, np.where(keep, values, 0.0).astype(np.float32))

@@ -148,6 +148,17 @@ class SamplerNodes:
         self.row_modulo.inputs[1].default_value = ny
 
 
+def volume_info(evaluated) -> VolumeInfo:
+    """Grids and bounds of an evaluated VOLUME-type object: a Volume object, or the volume
+    a mesh object's geometry nodes output (a depsgraph instance whose original is the mesh)."""
+    grids: dict[str, GridInfo] = {}
+    for grid in evaluated.data.grids:
+        grid.load()
+        grids[grid.name] = GridInfo(grid.name, grid.data_type, np.array(grid.matrix_object, np.float64))
+    corners = np.array([tuple(c) for c in evaluated.bound_box], np.float64)
+    return VolumeInfo(grids, (corners.min(axis=0), corners.max(axis=0)))
+
+
 class GridSampler:
     """Reads grids of volume objects into dense arrays; use as a context manager.
 
@@ -211,25 +222,35 @@ class GridSampler:
         if evaluated.type != "VOLUME":
             raise ValueError(f"it is a {evaluated.type.lower()} object making volume geometry; Haze reads "
                              "the grids of Volume objects only")
-        volume = evaluated.data
-        grids: dict[str, GridInfo] = {}
-        for grid in volume.grids:
-            grid.load()
-            grids[grid.name] = GridInfo(grid.name, grid.data_type, np.array(grid.matrix_object, np.float64))
-        corners = np.array([tuple(c) for c in evaluated.bound_box], np.float64)
-        return VolumeInfo(grids, (corners.min(axis=0), corners.max(axis=0)))
+        return volume_info(evaluated)
 
     def read(self, target, grid: GridInfo, start, shape) -> np.ndarray:
         """Voxels start .. start + shape - 1 (x, y, z) of `grid`: (nz, ny, nx) float32, or
         (nz, ny, nx, 3) for vector grids. Voxels the grid does not store read as its background."""
+        nodes = self.reader(target, grid)
+        try:
+            return self.read_with(nodes, grid, start, shape)
+        finally:
+            self._drop(nodes)
+
+    def reader(self, target, grid: GridInfo) -> SamplerNodes:
+        """A sampler tree reading `grid` of `target`, for any number of read_with calls (so a
+        volume read box by box builds its tree once); removed on close."""
         node_type = grid.node_type
         if node_type is None:
             raise ValueError(f"grids of type {grid.data_type} cannot be read")
+        nodes = build_sampler_tree(TEMPORARY_NAME, target, grid.name, node_type)
+        self._trees.append(nodes.tree)
+        return nodes
+
+    def read_with(self, nodes: SamplerNodes, grid: GridInfo, start, shape) -> np.ndarray:
+        """read() through a tree from reader(): at most MAX_POINTS_PER_PASS voxels per
+        evaluation, so the temporary mesh stays small whatever the box."""
+        node_type = grid.node_type
         width = GRID_TYPES[node_type][2]
         nx, ny, nz = (int(v) for v in shape)
         result = np.empty((nz, ny, nx, width), np.float32)
-        nodes = build_sampler_tree(TEMPORARY_NAME, target, grid.name, node_type)
-        self._use_tree(nodes)
+        self._modifier.node_group = nodes.tree
         slab = max(1, MAX_POINTS_PER_PASS // max(nx * ny, 1))
         for z0 in range(0, nz, slab):
             depth = min(slab, nz - z0)
@@ -239,14 +260,25 @@ class GridSampler:
 
     # ------------------------------------------------------------------ internals
     def _use_tree(self, nodes: SamplerNodes) -> None:
-        import bpy
-
+        """Evaluate `nodes` from now on; the previous tree is removed."""
         previous = self._modifier.node_group
         self._modifier.node_group = nodes.tree
         self._trees.append(nodes.tree)
-        if previous is not None and previous.name in bpy.data.node_groups:
-            self._trees.remove(previous)
-            bpy.data.node_groups.remove(previous)
+        if previous is not None:
+            self._drop_tree(previous)
+
+    def _drop(self, nodes: SamplerNodes) -> None:
+        if self._modifier.node_group is nodes.tree:
+            self._modifier.node_group = None
+        self._drop_tree(nodes.tree)
+
+    def _drop_tree(self, tree) -> None:
+        import bpy
+
+        if tree in self._trees:
+            self._trees.remove(tree)
+        if tree.name in bpy.data.node_groups:
+            bpy.data.node_groups.remove(tree)
 
     def _depsgraph(self):
         view_layer = self._scene.view_layers[0]

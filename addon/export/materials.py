@@ -13,6 +13,7 @@ Rules that follow from how Cycles shades (see the add-on section of README.md):
 from __future__ import annotations
 
 import warnings
+from dataclasses import replace
 
 import numpy as np
 
@@ -24,6 +25,7 @@ from .images import ImageLibrary
 from .messages import Messages, material_subject
 from .node_closures import VOLUME_KINDS, Term, as_volume_terms, rgb
 from .nodes import ShaderGraph
+from .procedural_volume import density_register, reads_only_coordinates
 
 DEFAULT_MATERIAL_NAME = "Haze Default Surface"
 MAX_ANISOTROPY = 1.0 - 1e-3  # Cycles clamps Henyey-Greenstein g to this magnitude
@@ -159,6 +161,42 @@ def volume_medium(name: str, terms: list[Term], messages: Messages, subject: str
                   sigma_s=rgb(np.maximum(sigma_s, 0.0)), g=g, emission=rgb(emission))
 
 
+def procedural_medium(name: str, terms: list[Term], graph: ShaderGraph, messages: Messages,
+                      subject: str) -> Medium | None:
+    """A procedural template Medium (program reading Object / Generated coordinates, no
+    box yet: procedural_volume.object_medium places it per object), or None when the
+    terms' programs are not a density Haze can render as one."""
+    reg = density_register(terms)
+    if reg is None or not reads_only_coordinates(graph.program.build([])):
+        return None
+    plain = [replace(t, binds=()) for t in terms]
+    medium = volume_medium(name, plain, messages, subject)
+    if medium is None:
+        return None
+    return replace(medium, type="grid", program=graph.program.build([]), program_density=reg)
+
+
+def convert_volume(tree, output, messages: Messages, subject: str, name: str,
+                   programs: bool) -> Medium | None:
+    """The medium of a material's Volume output: procedural when textures drive the Density
+    (and nothing else varies), else homogeneous with every input folded to a constant."""
+    socket = output.inputs["Volume"]
+    if programs:
+        quiet = Messages()
+        graph = ShaderGraph(subject, quiet, None)
+        graph.programs = True
+        terms = as_volume_terms(graph.closure(socket))
+        if any(t.binds for t in terms):
+            medium = procedural_medium(name, terms, graph, quiet, subject)
+            if medium is not None:
+                for warning in quiet.warnings:
+                    messages.warn(*warning.split(": ", 1))
+                return medium
+    graph = ShaderGraph(subject, messages, None)
+    graph.programs = False
+    return volume_medium(name, as_volume_terms(graph.closure(socket)), messages, subject)
+
+
 class MaterialExport:
     """One Blender material converted: its surface and, if it has one, its medium."""
 
@@ -199,10 +237,7 @@ def convert_material(blender_material, messages: Messages,
     graph.pass_index = blender_material.pass_index
     if graph.link_source(output.inputs["Displacement"]) is not None:
         messages.warn(subject, "displacement is not supported and is ignored")
-    graph.programs = False  # media are homogeneous here: no program reaches a Volume output
-    volume_terms = as_volume_terms(graph.closure(output.inputs["Volume"]))
-    graph.programs = images is not None
-    medium = volume_medium(medium_name(name), volume_terms, messages, subject)
+    medium = convert_volume(tree, output, messages, subject, medium_name(name), images is not None)
     if graph.link_source(output.inputs["Surface"]) is None and medium is not None:
         return MaterialExport(Material(name), medium)  # invisible boundary of the medium
     surface = graph.closure(output.inputs["Surface"])

@@ -302,17 +302,26 @@ def warn_phase(read: Inputs) -> None:
         read.warn(f"{phase} phase function is rendered as Henyey-Greenstein with the node's Anisotropy")
 
 
+def volume_density(read: Inputs) -> tuple[float, tuple]:
+    """(density, binds): the Density input's value, or 1 and a ("density", register) bind
+    when a program drives it (a procedural medium: materials.volume_medium)."""
+    reg = read.varying("Density")
+    if reg is not None:
+        return 1.0, (("density", reg),)
+    return max(read("Density"), 0.0), ()
+
+
 def shader_volume_scatter(read: Inputs) -> list[Term]:
     warn_phase(read)
-    density = max(read("Density"), 0.0)
+    density, binds = volume_density(read)
     sigma_s = np.broadcast_to(np.asarray(read("Color")) * density, (3,)).astype(np.float64)
-    return [Term("scatter", sigma_s, anisotropy=read("Anisotropy"))]
+    return [Term("scatter", sigma_s, anisotropy=read("Anisotropy"), binds=binds)]
 
 
 def shader_volume_absorption(read: Inputs) -> list[Term]:
-    density = max(read("Density"), 0.0)
+    density, binds = volume_density(read)
     sigma_a = np.maximum((1.0 - np.asarray(read("Color"))) * density, 0.0)
-    return [Term("absorb", np.broadcast_to(sigma_a, (3,)).astype(np.float64))]
+    return [Term("absorb", np.broadcast_to(sigma_a, (3,)).astype(np.float64), binds=binds)]
 
 
 def shader_volume_coefficients(read: Inputs) -> list[Term]:
@@ -325,8 +334,9 @@ def shader_volume_coefficients(read: Inputs) -> list[Term]:
 
 
 def shader_principled_volume(read: Inputs) -> list[Term]:
-    """Cycles' Principled Volume for a homogeneous medium (svm_node_principled_volume)."""
-    density = max(read("Density"), 0.0)
+    """Cycles' Principled Volume (svm_node_principled_volume); a program-driven Density
+    binds both coefficients to it (emission does not scale with density)."""
+    density, binds = volume_density(read)
     color = np.asarray(read("Color"), dtype=np.float64)
     absorption_color = np.sqrt(np.maximum(read("Absorption Color"), 0.0))
     absorption = np.maximum(1.0 - color, 0.0) * np.maximum(1.0 - absorption_color, 0.0)
@@ -334,8 +344,8 @@ def shader_principled_volume(read: Inputs) -> list[Term]:
     if read("Blackbody Intensity") > 0.0:
         read.warn("blackbody emission is not supported on mesh volumes and is ignored")
     terms = [
-        Term("scatter", color * density, anisotropy=read("Anisotropy")),
-        Term("absorb", absorption * density),
+        Term("scatter", color * density, anisotropy=read("Anisotropy"), binds=binds),
+        Term("absorb", absorption * density, binds=binds),
     ]
     if read("Emission Strength") > 0.0:
         terms.append(Term("volume_emission", np.broadcast_to(emission, (3,)).astype(np.float64)))

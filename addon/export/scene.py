@@ -21,6 +21,7 @@ from .materials import MaterialLibrary
 from .mesh import LocalGeometry, MeshPart, build_meshes, read_geometry, transform
 from .messages import Messages, object_subject
 from .object_info import add_object_info
+from .procedural_volume import object_medium
 from .volumes import VolumeExporter, is_smoke_domain
 from .world import world_environment
 
@@ -88,6 +89,8 @@ class MeshCollector:
         self.messages = messages
         self.groups: dict[str, list[MeshPart]] = {}
         self._geometry_cache: dict[tuple, LocalGeometry | None] = {}
+        # group -> material name -> that instance's procedural Medium (procedural_volume.py)
+        self.procedural: dict[str, dict[str, object]] = {}
 
     def add(self, instance) -> None:
         obj = instance.object
@@ -103,7 +106,23 @@ class MeshCollector:
         random_id = instance.random_id if instance.is_instance else None
         add_object_info(world.attributes, needed, len(world.triangles), obj, matrix, random_id)
         names = [m.name for m in materials]
-        self.groups.setdefault(instance_group(instance), []).append(MeshPart(world, names))
+        group = instance_group(instance)
+        templates = self._procedural_media(obj)
+        if templates:  # one medium per instance: its coordinates and box are the instance's
+            group = f"{group} #{len(self.procedural)}" if group in self.groups else group
+            texspace = (getattr(obj.data, "texspace_location", (0.0, 0.0, 0.0)),
+                        getattr(obj.data, "texspace_size", (1.0, 1.0, 1.0)))
+            self.procedural[group] = {
+                material: object_medium(template, f"{template.name} [{group}]", matrix, geometry.positions,
+                                        *texspace)
+                for material, template in templates.items()}
+        self.groups.setdefault(group, []).append(MeshPart(world, names))
+
+    def _procedural_media(self, obj) -> dict:
+        """Procedural media (material name -> template Medium) of the object's materials."""
+        exports = [self.library.get(m) for m in self._slot_materials(obj)]
+        return {e.material.name: e.medium for e in exports
+                if e.medium is not None and e.medium.program is not None}
 
     def _warn_ignored_visibility(self, obj) -> None:
         hidden = [name for name in RAY_VISIBILITY if not getattr(obj, f"visible_{name}", True)]
@@ -138,8 +157,12 @@ class MeshCollector:
         medium_of = self.library.medium_by_material()
         result = []
         for name, parts in self.groups.items():
-            result.extend(build_meshes(name, parts, medium_of, self.messages))
+            own = {material: medium.name for material, medium in self.procedural.get(name, {}).items()}
+            result.extend(build_meshes(name, parts, {**medium_of, **own}, self.messages))
         return result
+
+    def procedural_media(self) -> list:
+        return [medium for media in self.procedural.values() for medium in media.values()]
 
 
 def add_light(instance, library: MaterialLibrary, lights: list, light_names: list[str], emitters: list,
@@ -212,7 +235,9 @@ def export_scene(depsgraph, film: Film | None = None, render_depsgraph: bool = T
     meshes = collector.meshes() + emitters + volume_meshes
     used_materials = {name for mesh in meshes for name in mesh.materials}
     used_media = {mesh.medium for mesh in meshes if mesh.medium is not None}
-    media = library.media(used_media) + volume_media + ([world_medium] if world_medium is not None else [])
+    procedural = [m for m in collector.procedural_media() if m.name in used_media]
+    media = (library.media(used_media) + procedural + volume_media
+             + ([world_medium] if world_medium is not None else []))
     result = Scene(
         camera=camera,
         film=film,

@@ -115,18 +115,11 @@ class VdbFile:
                 grid.copyToArray(buffer, ijk=(int(start[0]) + x0, int(start[1]) + y0, z0))
                 slab = np.zeros(slab_shape, np.float32)
                 slab[:, y0:y1, x0:x1] = buffer.transpose(2, 1, 0)
-                slabs[attribute] = _cleaned(slab, clipping, counts[attribute])
+                slabs[attribute] = clean_slab(slab, clipping, counts[attribute])
             builder.add_row(bk, convert(slabs) if convert is not None else slabs)
         grids.clear()  # the file's trees (as large as the bricks) go before finish() gathers them
         grid = slabs = None  # the loop variable holds a tree too
-        for attribute, (bad, negative) in counts.items():
-            name = names[attribute]
-            if bad:
-                messages.warn(subject, f"grid '{name}' has {bad} NaN or infinite voxel values; they are "
-                                       "treated as 0")
-            if negative:
-                messages.warn(subject, f"grid '{name}' has {negative} negative voxel values; they are "
-                                       "treated as 0 (empty, as Cycles' clipping makes them)")
+        warn_dropped(counts, names, subject, messages)
         return builder.finish()
 
 
@@ -163,7 +156,20 @@ def _row_rectangle(blocks: list[np.ndarray], start: np.ndarray, z0: int, width: 
     return (int(low[0]), int(high[0])), (int(low[1]), int(high[1]))
 
 
-def _cleaned(slab: np.ndarray, clipping: float, counts: list[int]) -> np.ndarray:
+def warn_dropped(counts: dict[str, list[int]], names: dict[str, str], subject: str,
+                 messages: Messages) -> None:
+    """Warn, per grid names[attribute], about the voxels clean_slab dropped (counts[attribute])."""
+    for attribute, (bad, negative) in counts.items():
+        name = names[attribute]
+        if bad:
+            messages.warn(subject, f"grid '{name}' has {bad} NaN or infinite voxel values; they are "
+                                   "treated as 0")
+        if negative:
+            messages.warn(subject, f"grid '{name}' has {negative} negative voxel values; they are "
+                                   "treated as 0 (empty, as Cycles' clipping makes them)")
+
+
+def clean_slab(slab: np.ndarray, clipping: float, counts: list[int]) -> np.ndarray:
     """clean_grid's rules on one slab, in place (the caller's own buffer), counting what it
     drops into `counts`: non-finite voxels and negative ones read 0, and so do voxels below
     the clipping value (at or below 0 without one)."""

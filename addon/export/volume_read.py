@@ -20,6 +20,7 @@ import numpy as np
 from .grid_fields import FieldBuilder, GridMedium, clean_grid, crop_to_voxels, evaluate_fields, shape_text
 from .grid_sampler import GridInfo, GridSampler, VolumeInfo, index_box
 from .messages import Messages, material_subject
+from .sampled_bricks import sample_bricks
 from .smoke import SmokeCache
 from .sparse_volume import build_sparse
 from .vdb_reader import VdbFile
@@ -46,6 +47,10 @@ class VolumeSource:
     filepath: str = ""  # the .vdb file (this frame's, for a sequence) a modifier-free volume loads
     smoke: SmokeCache | None = None
     grid_names: dict[str, str] = field(default_factory=dict)  # material attribute -> grid in the volume
+    # Grids of a volume that a non-volume object's geometry nodes output (Volume Cube, Mesh
+    # to Volume...), read from the depsgraph instance: the sampler evaluates the original
+    # object, whose own type is not VOLUME, and reads these grids from its geometry.
+    info: VolumeInfo | None = field(default=None, compare=False)
 
 
 class GridReader:
@@ -63,7 +68,7 @@ class GridReader:
             if medium is not None:
                 return medium
         target = source.target if source.smoke is None else sampler.file_volume(source.smoke.path)
-        info = sampler.inspect(target)
+        info = source.info or sampler.inspect(target)
         if not info.grids:
             self.messages.warn(source.subject, "has no grids (an empty volume or a file that did not load); "
                                                "it is not rendered")
@@ -72,10 +77,17 @@ class GridReader:
         if not wanted:
             return None
         primary = info.grids[wanted.get("density") or next(iter(wanted.values()))]
-        start, shape = self._read_box(source, primary, info)
+        start, shape = index_box(primary, info.bounds)
+        if self._samples_sparsely(source, info, wanted, primary, shape):
+            return self._sample_sparse(sampler, target, source, info, wanted, primary, start, shape)
+        self._check_dense_box(primary, shape)
         raw = self._read_grids(sampler, target, source, info, wanted, primary, start, shape)
         if raw is None:
             return None
+        return self._crop_and_build(source, raw, start, shape, primary)
+
+    def _crop_and_build(self, source: VolumeSource, raw: dict[str, np.ndarray], start, shape,
+                        primary: GridInfo) -> GridMedium | None:
         read_shape = (int(shape[2]), int(shape[1]), int(shape[0]))
         if CROP_GRIDS and self._empty_without_grids(source, raw):
             raw, start = crop_to_voxels(raw, np.asarray(start))
@@ -142,12 +154,47 @@ class GridReader:
                                f"({', '.join(sorted(info.grids))}); it is not rendered")
         return wanted
 
-    def _read_box(self, source: VolumeSource, primary: GridInfo, info: VolumeInfo):
-        start, shape = index_box(primary, info.bounds)
+    @staticmethod
+    def _check_dense_box(primary: GridInfo, shape) -> None:
         if int(np.prod(shape)) > MAX_VOXELS:
             raise ValueError(f"grid '{primary.name}' spans {shape_text(shape[::-1])} voxels, more than "
                              f"Haze's dense grids hold ({MAX_VOXELS} voxels); lower its resolution")
-        return start, shape
+
+    def _samples_sparsely(self, source: VolumeSource, info: VolumeInfo, wanted: dict[str, str],
+                          primary: GridInfo, shape) -> bool:
+        """Whether the sampler reads this volume into bricks (sampled_bricks): a large box of
+        scalar, aligned grids of a volume that is not a smoke cache, under a material that
+        gives nothing where its grids are 0 (so empty bricks are exact)."""
+        if source.smoke is not None or int(np.prod(shape)) < SPARSE_MIN_VOXELS:
+            return False
+        grids = [info.grids[g] for g in wanted.values()]
+        aligned = all(np.allclose(g.index_to_object, primary.index_to_object, rtol=1e-6, atol=1e-9)
+                      for g in grids)
+        if not aligned or any(g.node_type != "FLOAT" for g in grids):
+            return False
+        return self._empty_without_grids(source, {name: np.zeros(1, np.float32) for name in wanted})
+
+    def _sample_sparse(self, sampler, target, source: VolumeSource, info: VolumeInfo, wanted: dict[str, str],
+                       primary: GridInfo, start, shape) -> GridMedium | None:
+        """The volume's grids sampled into bricks, rendered as they are when the material is
+        constant coefficients times one grid (sparse_volume); otherwise made dense for the
+        general path, if the box is small enough to hold densely."""
+        grids = sample_bricks(sampler, target, {a: info.grids[g] for a, g in wanted.items()}, start, shape,
+                              source.clipping, source.subject, self.messages)
+        if not any(len(g.bricks) and g.max() > 0.0 for g in grids.values()):
+            names = ", ".join(f"'{g}'" for g in wanted.values())
+            self.messages.warn(source.subject, f"grids {names} have no voxels above the clipping value "
+                               f"{source.clipping:g}; the volume is not rendered")
+            return None
+        built = build_sparse(grids, lambda values: self._coefficients(source, values), np.asarray(start),
+                             primary.index_to_object)
+        if built is not None:
+            medium, fields = built
+            FieldBuilder(source.subject, self.messages, (1, 1, 1), {}).warn_blackbody(fields)
+            return medium
+        self._check_dense_box(primary, shape)
+        raw = {name: grids.pop(name).to_dense() for name in list(grids)}
+        return self._crop_and_build(source, raw, start, shape, primary)
 
     def _read_grids(self, sampler, target, source: VolumeSource, info: VolumeInfo, wanted: dict[str, str],
                     primary: GridInfo, start, shape) -> dict[str, np.ndarray] | None:

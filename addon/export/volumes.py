@@ -40,7 +40,7 @@ from renderer.media.bricks import SparseGrid
 from renderer.scene import Material, Medium, Mesh
 
 from .grid_fields import GridMedium
-from .grid_sampler import GridSampler
+from .grid_sampler import GridSampler, volume_info
 from .materials import MaterialLibrary
 from .messages import Messages, material_subject, object_subject
 from .smoke import CACHE_GRIDS, smoke_cache
@@ -194,8 +194,9 @@ class VolumeExporter:
         data_key = original.name_full if len(original.modifiers) else "data:" + original.data.name_full
         filepath = "" if len(original.modifiers) else volume_file(obj.data)
         key = ("volume", data_key, material.name_full if material is not None else "", filepath)
+        info = volume_info(obj) if original.type != "VOLUME" else None
         return VolumeSource(key, subject, material, float(obj.data.render.clipping), target=original,
-                            filepath=filepath)
+                            filepath=filepath, info=info)
 
     def _smoke_source(self, obj) -> VolumeSource | None:
         cache = smoke_cache(obj, self.frame, self.messages)

@@ -24,6 +24,7 @@ from renderer.media.layout import (
     GRID_BLACKBODY,
     GRID_NAMES,
     I_HAS_EMISSION,
+    I_PROGRAM,
     INDEX,
     MEDIUM_GRID,
     MEDIUM_HOMOGENEOUS,
@@ -32,6 +33,7 @@ from renderer.media.layout import (
     MediaTable,
     dda_scratch,
 )
+from renderer.media.procedural import PROC_CELLS, build_program_tables, check_program, density_bounds
 from renderer.scene import MEDIUM_TYPES, Medium
 from renderer.validate import validate_medium
 
@@ -68,10 +70,19 @@ def build_media_data(media: list[Medium], use_majorant_grid: bool = True) -> Med
     params = np.zeros((len(media), PARAMS.size), np.float32)
     index = np.zeros((len(media), INDEX.size), np.int64)
     store = _ArrayStore()
+    programs: list = []
     for i, med in enumerate(media):
         validate_medium(med, f"media[{i}]")
+        if med.program is not None:
+            check_program(med.program, med.program_density, f"media[{i}]")
         _fill_medium(params[i], index[i], med, store, use_majorant_grid)
-    return MediaData(params, index, store.grid_data(), store.brick_index(), store.maj_data())
+        if med.program is not None:
+            index[i, I_PROGRAM] = len(programs)
+            programs.append(med)
+    tables = None
+    if programs:
+        tables = build_program_tables([m.program for m in programs], [m.program_density for m in programs])
+    return MediaData(params, index, store.grid_data(), store.brick_index(), store.maj_data(), tables)
 
 
 class _ArrayStore:
@@ -158,11 +169,15 @@ def _fill_medium(params: np.ndarray, index: np.ndarray, med: Medium, store: _Arr
     index[INDEX.slice("has_emission")] = int(emits_constant or (kind == MEDIUM_GRID and emits_blackbody))
     index[INDEX.slice("grid_offset")] = -1
     index[INDEX.slice("maj_offset")] = -1
+    index[INDEX.slice("program")] = -1
     if kind == MEDIUM_HOMOGENEOUS:
         params[PARAMS.slice("to_unit")] = np.eye(3, 4).ravel()
         return
     to_unit, axis_lengths = _world_to_unit(med)
     params[PARAMS.slice("to_unit")] = to_unit.ravel()
+    if med.program is not None:
+        _fill_procedural(params, index, med, store, emits_constant, axis_lengths)
+        return
     blackbody_grid = _store_grids(index, med, store, emits_blackbody)
     cells = _majorant_cells(med.density, use_majorant_grid)
     emits = bool(index[I_HAS_EMISSION])
@@ -174,6 +189,29 @@ def _fill_medium(params: np.ndarray, index: np.ndarray, med: Medium, store: _Arr
            med.blackbody_intensity, exact_excess)
     offset, dims = store.majorant(key, lambda: _majorant(med, cells, emits, emits_constant, blackbody_grid,
                                                          exact_excess))
+    index[INDEX.slice("maj_offset")] = offset
+    index[INDEX.slice("maj_dims")] = dims
+    params[PARAMS.slice("emission_rate")] = EMISSION_COLLISIONS_PER_CELL * max(
+        c / n for c, n in zip(cells, axis_lengths))
+
+
+def _fill_procedural(params: np.ndarray, index: np.ndarray, med: Medium, store: _ArrayStore,
+                     emits_constant: bool, axis_lengths: tuple[float, float, float]) -> None:
+    """A procedural medium: no grid (its density is never looked up in grid_data, see
+    grid.medium_density) and majorant cells bounding its program's density (procedural.py);
+    no regular tracking."""
+    index[INDEX.slice("grid_bricks")] = -1
+    unit_to_world = _unit_to_world(med)
+    bound = density_bounds(med, unit_to_world, f"medium {med.name!r}")
+    cells = (PROC_CELLS,) * 3
+
+    def make():
+        maj = np.zeros(bound.shape + (CELL.size,), np.float32)
+        maj[..., CELL_DENSITY_BOUND] = bound
+        maj[..., CELL_EMITS] = 1.0 if emits_constant else 0.0
+        return maj
+
+    offset, dims = store.majorant(("program", id(med)), make)
     index[INDEX.slice("maj_offset")] = offset
     index[INDEX.slice("maj_dims")] = dims
     params[PARAMS.slice("emission_rate")] = EMISSION_COLLISIONS_PER_CELL * max(
@@ -229,10 +267,8 @@ def _max_sigma_t(med: Medium) -> float:
     return float(np.max(np.add(med.sigma_a, med.sigma_s))) * med.scale
 
 
-def _world_to_unit(med: Medium) -> tuple[np.ndarray, tuple[float, float, float]]:
-    """D = (to_world * T(p0) * S(p1 - p0))^-1 as a 3x4 affine, and the world length of the
-    unit cube's three edges (for the emission collision rate). The validator has made sure
-    the box is not flat and the transform is affine and invertible."""
+def _unit_to_world(med: Medium) -> np.ndarray:
+    """(4, 4) float64: to_world * T(p0) * S(p1 - p0), the grid's unit cube to the world."""
     w = med.to_world
     assert w.shape == (4, 4) and np.all(np.isfinite(w)), "validate_medium conforms to_world"
     p0 = np.asarray(med.p0, np.float64)
@@ -241,7 +277,14 @@ def _world_to_unit(med: Medium) -> tuple[np.ndarray, tuple[float, float, float]]
     box = np.eye(4)
     box[:3, :3] = np.diag(extent)
     box[:3, 3] = p0
-    unit_to_world = w @ box
+    return w @ box
+
+
+def _world_to_unit(med: Medium) -> tuple[np.ndarray, tuple[float, float, float]]:
+    """D = (to_world * T(p0) * S(p1 - p0))^-1 as a 3x4 affine, and the world length of the
+    unit cube's three edges (for the emission collision rate). The validator has made sure
+    the box is not flat and the transform is affine and invertible."""
+    unit_to_world = _unit_to_world(med)
     lin = unit_to_world[:3, :3]
     inv = np.linalg.inv(unit_to_world)
     lengths = tuple(float(np.linalg.norm(lin[:, a])) for a in range(3))

@@ -15,6 +15,7 @@ import numpy as np
 
 from renderer.kernels import inline_kernel
 from renderer.media.layout import GRID_DENSITY, P_TO_UNIT
+from renderer.media.procedural import program_density
 from renderer.media.table import grid_bricks, grid_dim, grid_offset, is_grid
 
 _SPAN = 9  # stored voxels per brick and axis (bricks.SPAN: 8 and the next brick's first)
@@ -128,7 +129,12 @@ def grid_lookup3(mt, m, which, u):
 
 @inline_kernel
 def medium_density(mt, m, p):
-    """Density of medium m at world point p: 1 for homogeneous media."""
+    """Density of medium m at world point p: 1 for homogeneous media; a procedural medium's
+    program inside its box (procedural.py)."""
     if not is_grid(mt, m):
         return 1.0
-    return grid_lookup(mt, m, GRID_DENSITY, to_unit_point(mt, m, p))
+    u = to_unit_point(mt, m, p)
+    rho = program_density(mt, m, u, p)  # the constant -1 for tables without programs
+    if rho >= 0.0:
+        return rho
+    return grid_lookup(mt, m, GRID_DENSITY, u)

@@ -32,6 +32,8 @@ media; a medium id is its index in the scene's list.
                            (times 3, + c, for GRID_BLACKBODY)
         maj_offset         first cell of the medium's majorant grid in maj_data (-1 if none)
         maj_dims           [a]: majorant cells along unit-cube axis a
+        program            procedural media: the program giving the density (procedural.py),
+                           else -1
     grid_data (N,)        float32  every grid, x fastest. The temperature grid is stored as
                                    GRID_BLACKBODY, the RGB blackbody emission of every voxel
                                    (intensity applied), which the kernels interpolate: Cycles'
@@ -43,6 +45,8 @@ media; a medium id is its index in the scene's list.
                                    cell by regular tracking (exact optical depth, regular.py)
                                    rather than against its bound
     scratch   (MAX_STACK, DDA.size) float64  one walker row per stack entry (majorant.py)
+    programs  ProceduralMediaTable only: the procedural media's programs and a scratch to run
+              them in (procedural.DensityPrograms)
 
 A few wide arrays rather than one per field: every non-inlined call passes each array of
 the tuple, so a 15-array table made a trilinear lookup ~5x slower. A homogeneous medium has
@@ -93,6 +97,7 @@ INDEX = Layout("medium index", [
     ("grid_bricks", len(GRID_NAMES)),
     ("maj_offset", 1),
     ("maj_dims", 3),
+    ("program", 1),
 ])
 I_KIND = INDEX.offset("kind")
 I_HAS_EMISSION = INDEX.offset("has_emission")
@@ -101,6 +106,7 @@ I_GRID_DIMS = INDEX.offset("grid_dims")
 I_GRID_BRICKS = INDEX.offset("grid_bricks")
 I_MAJ_OFFSET = INDEX.offset("maj_offset")
 I_MAJ_DIMS = INDEX.offset("maj_dims")
+I_PROGRAM = INDEX.offset("program")
 I_SIZE = INDEX.size
 
 CELL = Layout("majorant cell", [("density_bound", 1), ("emits", 1), ("exact", 1)])
@@ -149,6 +155,20 @@ class MediaTable(NamedTuple):
     scratch: np.ndarray
 
 
+class ProceduralMediaTable(NamedTuple):
+    """A MediaTable with the procedural media's programs (procedural.py): a type of its own,
+    so that the kernels compiled for scenes without procedural media stay exactly as they
+    are, and only scenes with one compile the program into their trackers."""
+
+    params: np.ndarray
+    index: np.ndarray
+    grid_data: np.ndarray
+    brick_index: np.ndarray
+    maj_data: np.ndarray
+    scratch: np.ndarray
+    programs: tuple  # a procedural.DensityPrograms
+
+
 class MediaData(NamedTuple):
     """A scene's media tables, built once and never written: what a compiled scene keeps."""
 
@@ -157,6 +177,7 @@ class MediaData(NamedTuple):
     grid_data: np.ndarray
     brick_index: np.ndarray
     maj_data: np.ndarray
+    programs: tuple | None = None  # procedural media's program tables (procedural.build_program_tables)
 
     @property
     def has_grids(self) -> bool:
@@ -165,7 +186,13 @@ class MediaData(NamedTuple):
 
     def with_scratch(self, scratch: np.ndarray) -> MediaTable:
         """The kernels' argument over these tables, walking the majorant grid in `scratch`."""
-        return MediaTable(self.params, self.index, self.grid_data, self.brick_index, self.maj_data, scratch)
+        if self.programs is None:
+            return MediaTable(self.params, self.index, self.grid_data, self.brick_index, self.maj_data,
+                              scratch)
+        from renderer.media.procedural import program_scratch  # (procedural.py imports this module)
+
+        return ProceduralMediaTable(self.params, self.index, self.grid_data, self.brick_index, self.maj_data,
+                                    scratch, program_scratch(self.programs))
 
 
 def dda_scratch() -> np.ndarray:

@@ -1,5 +1,7 @@
-"""Run one material's program at given points from Python (tests and tools): a jitted
-entry around the interpreter, which is inline-only."""
+"""Run one material's program at given points from Python (tests, tools, the export of
+world programs): a jitted entry around the interpreter (compiled once, called by every stage). Procedural
+media (renderer.media.procedural) call the same entry from their trackers, with tables of
+the same types, so the interpreter compiles once for both."""
 
 from __future__ import annotations
 
@@ -11,7 +13,7 @@ from .interpreter import run_program
 
 
 @kernel
-def _evaluate(st, m, tri, bary, x, n, regs, first, width, out):
+def evaluate_points(st, m, tri, bary, x, n, regs, first, width, out):
     # The signature the render stages call it with (stage.apply_program), so that the
     # interpreter compiles once: int64 indices, a bool variable (not a literal) for back.
     back = tri.shape[0] < 0
@@ -33,7 +35,7 @@ def evaluate_program(tables, material: int, register: int, width: int, triangles
     k = len(triangles)
     out = np.zeros((k, width), np.float32)
     regs = np.zeros(tables.max_registers, np.float32)
-    _evaluate(tables.arrays, np.int64(material), np.asarray(triangles, np.int32),
-              np.asarray(barycentrics, np.float32), np.asarray(positions, np.float32),
-              np.asarray(normals, np.float32), regs, np.int64(register), np.int64(width), out)
+    evaluate_points(tables.arrays, np.int64(material), np.asarray(triangles, np.int32),
+                    np.asarray(barycentrics, np.float32), np.asarray(positions, np.float32),
+                    np.asarray(normals, np.float32), regs, np.int64(register), np.int64(width), out)
     return out

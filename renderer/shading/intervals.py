@@ -1,0 +1,427 @@
+"""Interval bounds of a shader program over boxes of space: what a procedural medium's
+majorant is built from (renderer.media.procedural).
+
+run_intervals() runs a program (program.py) on intervals instead of numbers: every register
+holds a lower and an upper bound per box, (R, N) float64 arrays for N boxes, and each
+operation maps its inputs' intervals to an interval that contains every value the
+interpreter (interpreter.py) can produce from inputs inside them. Rules, by operation:
+
+* position: the box itself (the caller gives world-space boxes).
+* add, subtract, multiply, divide, multiply-add, min, max, abs, ...: standard interval
+  arithmetic (a product's bounds are the extremes of the four corner products; a division
+  by an interval containing 0 is unbounded).
+* monotone functions (sqrt, exp, floor, Map Range with constant parameters, Clamp,
+  smoothstep...): the function at the interval's ends.
+* bounded functions (sine, fract, comparisons, Gradient, Checker's factor): their range.
+* Mapping with constant location, rotation and scale: the affine image of the box,
+  centre +- |M| radius.
+* Color Ramp: the least and greatest table entry between the factor's ends (the lookup
+  interpolates linearly between neighbouring entries, so it never leaves that hull).
+* Noise: a range proved below from the structure of Cycles' Perlin noise (not sampled).
+* anything else: unbounded (-inf, inf); a later clamp may bound it again.
+
+Noise's range. Cycles' perlin (kernel/svm/noise.h, mirrored in noise.py) is a convex
+combination of the eight lattice corners' values: the weights are products of the quintic
+fade s(f) and 1 - s(f), which lie in [0, 1] and sum to 1. A corner's value is +-u +- v where
+u, v are two of the offsets (dx, dy, dz) from that corner, each |d| <= 1, so
+|perlin| <= sum_c w_c (|dx_c| + |dy_c| + |dz_c|) = G(fx) + G(fy) + G(fz), with
+G(f) = (1 - s(f)) f + s(f) (1 - f) = f + s(f) (1 - 2 f). For f <= 1/2, s(f) <= s(1/2) = 1/2
+(s increases), so G(f) <= f + (1 - 2 f) / 2 = 1/2; G(f) = G(1 - f) covers f > 1/2. Hence
+|perlin| <= 3/2 and |snoise| = 0.982 |perlin| <= 1.473. fBM sums octaves with weights amp_i:
+|total| <= 1.473 sum amp_i, so the normalized output lies in [0.5 - 0.7365, 0.5 + 0.7365]
+and the plain one in +-1.473 (maxamp + amp of a fractional octave); a fractional detail
+mixes two such values convexly and stays inside. Distortion only moves the point. This is
+looser than the values met in practice (2e6 random points give |snoise| up to 0.97), which
+costs null collisions, never bias.
+
+Rounding: registers are float32 and the interpreter computes in float64, so every result
+is widened by REL_PAD times the largest magnitude among the operation's input and output
+bounds (float32 rounding is 6e-8 relative, per operation).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .names import MATH_OPS, RAMP_SIZE, VECTOR_OPS
+from .program import I_A, I_B, I_C, I_D, I_DST, I_OP, I_P0, I_P1, I_P2, OPCODES, ShaderProgram
+
+REL_PAD = 1e-6
+# |snoise| <= 0.982 * 3/2 (see the module docstring).
+SNOISE_BOUND = 0.982 * 1.5
+INF = math.inf
+
+_MATH = {name: k for k, name in enumerate(MATH_OPS)}
+_VECTOR = {name: k for k, name in enumerate(VECTOR_OPS)}
+
+
+class Intervals:
+    """The register file on intervals: lo, hi (R, N) float64, N boxes."""
+
+    def __init__(self, registers: np.ndarray, n: int) -> None:
+        init = np.asarray(registers, np.float64)[:, None]
+        self.lo = np.repeat(init, n, axis=1)
+        self.hi = self.lo.copy()
+
+    def get(self, r: int) -> tuple[np.ndarray, np.ndarray]:
+        # copies: an operation may write a register it reads
+        return self.lo[r].copy(), self.hi[r].copy()
+
+    def put(self, r: int, lo, hi, *inputs) -> None:
+        """Store [lo, hi] widened for rounding; NaN bounds (inf - inf) become unbounded."""
+        lo = np.where(np.isnan(lo), -INF, lo)
+        hi = np.where(np.isnan(hi), INF, hi)
+        mag = np.maximum(np.abs(lo), np.abs(hi))
+        for a_lo, a_hi in inputs:
+            mag = np.maximum(mag, np.maximum(np.abs(a_lo), np.abs(a_hi)))
+        with np.errstate(invalid="ignore"):
+            pad = np.where(np.isfinite(mag), REL_PAD * mag + 1e-37, 0.0)
+        self.lo[r] = lo - pad
+        self.hi[r] = hi + pad
+
+    def constant(self, r: int) -> bool:
+        return bool(np.all(self.lo[r] == self.hi[r]))
+
+    def value(self, r: int) -> float:
+        return float(self.lo[r, 0])
+
+
+# ------------------------------------------------------------------------ interval rules
+
+
+def _add(a, b):
+    return a[0] + b[0], a[1] + b[1]
+
+
+def _sub(a, b):
+    return a[0] - b[1], a[1] - b[0]
+
+
+def _mul(a, b):
+    with np.errstate(invalid="ignore"):
+        p = np.stack([a[0] * b[0], a[0] * b[1], a[1] * b[0], a[1] * b[1]])
+    p = np.where(np.isnan(p), 0.0, p)  # 0 * inf: the product of finite values there is 0
+    return p.min(axis=0), p.max(axis=0)
+
+
+def _div(a, b):
+    """safe_divide: a / b, 0 where b == 0; unbounded where b's interval holds 0."""
+    straddles = (b[0] <= 0.0) & (b[1] >= 0.0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        inv = (np.where(straddles, 1.0, 1.0 / b[1]), np.where(straddles, 1.0, 1.0 / b[0]))
+    lo, hi = _mul(a, inv)
+    exact_zero = (b[0] == 0.0) & (b[1] == 0.0)
+    lo = np.where(straddles, np.where(exact_zero, 0.0, -INF), lo)
+    hi = np.where(straddles, np.where(exact_zero, 0.0, INF), hi)
+    return lo, hi
+
+
+def _mono(f, a):
+    """An increasing function at the ends."""
+    with np.errstate(all="ignore"):
+        return f(a[0]), f(a[1])
+
+
+def _hull(*xs):
+    return np.minimum.reduce([x[0] for x in xs]), np.maximum.reduce([x[1] for x in xs])
+
+
+def _abs(a):
+    lo = np.where((a[0] <= 0.0) & (a[1] >= 0.0), 0.0, np.minimum(np.abs(a[0]), np.abs(a[1])))
+    return lo, np.maximum(np.abs(a[0]), np.abs(a[1]))
+
+
+def _range(a, lo, hi):
+    return np.full_like(a[0], lo), np.full_like(a[0], hi)
+
+
+def _unbounded(a):
+    return _range(a, -INF, INF)
+
+
+def _clamp01(a):
+    return np.clip(a[0], 0.0, 1.0), np.clip(a[1], 0.0, 1.0)
+
+
+def _pow(a, b):
+    """Cycles' safe_powf for a >= 0 (a^b, increasing in a for b >= 0); else unbounded."""
+    if not (np.all(a[0] >= 0.0) and np.all(b[0] >= 0.0)):
+        return _unbounded(a)
+    with np.errstate(all="ignore"):
+        c = np.stack([a[0] ** b[0], a[0] ** b[1], a[1] ** b[0], a[1] ** b[1], np.zeros_like(a[0])])
+    c = np.where(np.isnan(c), INF, c)
+    return c.min(axis=0), c.max(axis=0)
+
+
+def math_interval(op: int, a, b, c):  # noqa: C901 - one branch per Math operation
+    """Interval of Math operation `op` (names.MATH_OPS) of a, b, c (intervals)."""
+    name = MATH_OPS[op]
+    if name == "ADD":
+        return _add(a, b)
+    if name == "SUBTRACT":
+        return _sub(a, b)
+    if name == "MULTIPLY":
+        return _mul(a, b)
+    if name == "DIVIDE":
+        return _div(a, b)
+    if name == "MULTIPLY_ADD":
+        return _add(_mul(a, b), c)
+    if name == "POWER":
+        return _pow(a, b)
+    if name == "SQRT":
+        return _mono(lambda x: np.sqrt(np.maximum(x, 0.0)), a)
+    if name == "ABSOLUTE":
+        return _abs(a)
+    if name == "EXPONENT":
+        return _mono(np.exp, a)
+    if name == "MINIMUM":
+        return np.minimum(a[0], b[0]), np.minimum(a[1], b[1])
+    if name == "MAXIMUM":
+        return np.maximum(a[0], b[0]), np.maximum(a[1], b[1])
+    if name in ("LESS_THAN", "GREATER_THAN", "COMPARE", "FRACT"):
+        return _range(a, 0.0, 1.0)
+    if name in ("SIGN", "SINE", "COSINE", "TANH"):
+        return _range(a, -1.0, 1.0)
+    if name in ("FLOOR", "CEIL", "ROUND", "TRUNC"):
+        rounding = {"FLOOR": np.floor, "CEIL": np.ceil, "TRUNC": np.trunc}
+        return _mono(rounding.get(name, lambda x: np.floor(x + 0.5)), a)
+    if name in ("RADIANS", "DEGREES"):
+        k = math.pi / 180.0 if name == "RADIANS" else 180.0 / math.pi
+        return a[0] * k, a[1] * k
+    return _unbounded(a)
+
+
+def _vec(iv: Intervals, r: int):
+    return [iv.get(r + k) for k in range(3)]
+
+
+def vector_interval(op: int, a, b, c, s):
+    """(vector intervals (3) or None, scalar interval or None) of Vector Math op `op`."""
+    name = VECTOR_OPS[op]
+    per = {"ADD": "ADD", "SUBTRACT": "SUBTRACT", "MULTIPLY": "MULTIPLY", "DIVIDE": "DIVIDE",
+           "MINIMUM": "MINIMUM", "MAXIMUM": "MAXIMUM", "FLOOR": "FLOOR", "CEIL": "CEIL",
+           "FRACTION": "FRACT", "SINE": "SINE", "COSINE": "COSINE", "SIGN": "SIGN"}
+    if name in per:
+        k = _MATH[per[name]]
+        return [math_interval(k, a[i], b[i], c[i]) for i in range(3)], None
+    if name == "MULTIPLY_ADD":
+        return [_add(_mul(a[i], b[i]), c[i]) for i in range(3)], None
+    if name == "SCALE":
+        return [_mul(a[i], s) for i in range(3)], None
+    if name == "ABSOLUTE":
+        return [_abs(a[i]) for i in range(3)], None
+    if name == "NORMALIZE":
+        return [_range(a[i], -1.0, 1.0) for i in range(3)], None
+    if name == "DOT_PRODUCT":
+        return None, _add(_add(_mul(a[0], b[0]), _mul(a[1], b[1])), _mul(a[2], b[2]))
+    if name in ("LENGTH", "DISTANCE"):
+        d = a if name == "LENGTH" else [_sub(a[i], b[i]) for i in range(3)]
+        sq = [_mul(_abs(x), _abs(x)) for x in d]
+        total = _add(_add(sq[0], sq[1]), sq[2])
+        return None, _mono(np.sqrt, total)
+    return [_unbounded(a[0])] * 3, None
+
+
+# ------------------------------------------------------------------------ texture rules
+
+
+def noise_interval(a, detail, roughness, normalize: bool):
+    """(value, colour) interval of the Noise texture (see the module docstring)."""
+    if normalize:
+        lo, hi = 0.5 - 0.5 * SNOISE_BOUND, 0.5 + 0.5 * SNOISE_BOUND
+        return _range(a, lo, hi)
+    # sum of amplitudes for the largest detail and roughness the intervals allow
+    d = np.clip(detail[1], 0.0, 15.0)
+    r = np.maximum(roughness[1], 0.0)
+    total = np.zeros_like(d)
+    amp = np.ones_like(d)
+    for k in range(17):  # octaves 0 .. floor(d), plus the fractional one: at most 17
+        total = total + np.where(k <= np.floor(d) + 1.0, amp, 0.0)
+        amp = amp * r
+    bound = SNOISE_BOUND * total
+    return -bound, bound
+
+
+def _euler(r):
+    cx, cy, cz = (math.cos(v) for v in r)
+    sx, sy, sz = (math.sin(v) for v in r)
+    return np.array([[cy * cz, sy * sx * cz - cx * sz, sy * cx * cz + sx * sz],
+                     [cy * sz, sy * sx * sz + cx * cz, sy * cx * sz - sx * cz],
+                     [-sy, cy * sx, cy * cx]])
+
+
+def _affine(m: np.ndarray, t: np.ndarray, v):
+    """The image of box v (3 intervals) under x -> m x + t: centre +- |m| radius."""
+    lo = np.stack([x[0] for x in v])
+    hi = np.stack([x[1] for x in v])
+    centre, radius = 0.5 * (lo + hi), 0.5 * (hi - lo)
+    c = m @ centre + t[:, None]
+    r = np.abs(m) @ radius
+    return [(c[k] - r[k], c[k] + r[k]) for k in range(3)]
+
+
+def mapping_interval(kind: int, v, loc, rot, scale):
+    """Mapping node with constant loc, rot, scale (3-vectors of floats) on box v."""
+    m = _euler(rot)
+    s = np.asarray(scale, np.float64)
+    if kind == 0:
+        return _affine(m @ np.diag(s), np.asarray(loc, np.float64), v)
+    if kind == 1:
+        if np.any(s == 0.0):
+            return None
+        inv = np.diag(1.0 / s) @ m.T
+        return _affine(inv, -inv @ np.asarray(loc, np.float64), v)
+    if kind == 2:
+        return _affine(m @ np.diag(s), np.zeros(3), v)
+    return [_range(v[0], -1.0, 1.0)] * 3
+
+
+def map_range_value(v: np.ndarray, fmin, fmax, tmin, tmax, steps, kind: int, clamp: bool) -> np.ndarray:
+    """Map Range (float) at v, as interpreter._map_range (numpy, constant parameters)."""
+    if fmax == fmin:
+        return np.zeros_like(v)
+    with np.errstate(all="ignore"):
+        if kind >= 2:
+            lo, hi = (fmax, fmin) if fmin > fmax else (fmin, fmax)
+            t = np.clip((v - lo) / (hi - lo), 0.0, 1.0)
+            f = t * t * t * (t * (t * 6.0 - 15.0) + 10.0) if kind == 3 else (3.0 - 2.0 * t) * t * t
+            f = np.where(v < lo, 0.0, np.where(v >= hi, 1.0, f))
+            if fmin > fmax:
+                f = 1.0 - f
+            return tmin + f * (tmax - tmin)
+        f = (v - fmin) / (fmax - fmin)
+        if kind == 1:
+            f = np.floor(f * (steps + 1.0)) / steps if steps > 0.0 else np.zeros_like(f)
+        r = tmin + f * (tmax - tmin)
+    if clamp:
+        r = np.clip(r, min(tmin, tmax), max(tmin, tmax))
+    return r
+
+
+def ramp_interval(data: np.ndarray, start: int, channels: int, channel: int, f):
+    """Bounds of ramp_lookup over factor interval f: table entries between its ends."""
+    table = np.asarray(data[start:start + RAMP_SIZE * channels], np.float64)
+    table = table.reshape(RAMP_SIZE, channels)[:, channel]
+    lo_i = np.floor(np.clip(np.nan_to_num(f[0], nan=0.0), 0.0, 1.0) * (RAMP_SIZE - 1)).astype(np.int64)
+    hi_f = np.clip(np.nan_to_num(f[1], nan=1.0), 0.0, 1.0) * (RAMP_SIZE - 1)
+    hi_i = np.minimum(np.ceil(hi_f).astype(np.int64), RAMP_SIZE - 1)
+    nan_possible = np.isnan(f[0]) | np.isnan(f[1])
+    lo_i = np.where(nan_possible, 0, lo_i)  # NaN reads entry 0
+    mins = np.array([table[i:j + 1].min() for i, j in zip(lo_i, hi_i)])
+    maxs = np.array([table[i:j + 1].max() for i, j in zip(lo_i, hi_i)])
+    return mins, maxs
+
+
+# ------------------------------------------------------------------------ the evaluator
+
+
+def run_intervals(program: ShaderProgram, boxes_lo: np.ndarray, boxes_hi: np.ndarray) -> Intervals:  # noqa: C901
+    """Run `program` on N world-space boxes ((N, 3) corners); returns its register
+    intervals. Operations without a rule here give unbounded results."""
+    n = boxes_lo.shape[0]
+    iv = Intervals(program.registers, n)
+    code = np.asarray(program.code, np.int64).reshape(-1, 10)
+    for ins in code:
+        op, dst, a, b, c = (int(ins[k]) for k in (I_OP, I_DST, I_A, I_B, I_C))
+        name = OPCODES[op]
+        p0, p1, p2 = int(ins[I_P0]), int(ins[I_P1]), int(ins[I_P2])
+        if name == "position":
+            for k in range(3):
+                iv.put(dst + k, boxes_lo[:, k], boxes_hi[:, k])
+        elif name == "math":
+            lo, hi = math_interval(p0, iv.get(a), iv.get(b), iv.get(c))
+            if p1:
+                lo, hi = _clamp01((lo, hi))
+            iv.put(dst, lo, hi, iv.get(a), iv.get(b), iv.get(c))
+        elif name == "vector_math":
+            va, vb, vc = _vec(iv, a), _vec(iv, b), _vec(iv, c)
+            vec, scalar = vector_interval(p0, va, vb, vc, iv.get(int(ins[I_D])))
+            if p1:
+                iv.put(dst, *(scalar if scalar is not None else _unbounded(va[0])), *va, *vb)
+            else:
+                vec = vec if vec is not None else [_range(va[0], 0.0, 0.0)] * 3
+                for k in range(3):
+                    iv.put(dst + k, *vec[k], va[k], vb[k], vc[k])
+        elif name in ("mix", "mix_float"):
+            t = iv.get(a)
+            if p1:
+                t = _clamp01(t)
+            width = 3 if name == "mix" else 1
+            blend_mix = name == "mix_float" or p0 == 0
+            for k in range(width):
+                x, y = iv.get(b + k), iv.get(c + k)
+                one = (np.ones_like(t[0]),) * 2
+                r = _add(_mul(_sub(one, t), x), _mul(t, y)) if blend_mix else _unbounded(x)
+                if name == "mix" and p2:
+                    r = _clamp01(r)
+                iv.put(dst + k, *r, x, y, t)
+        elif name == "mapping":
+            consts = [b, c, int(ins[I_D])]
+            fixed = all(iv.constant(r + k) for r in consts for k in range(3))
+            out = None
+            if fixed:
+                loc, rot, scale = ([iv.value(r + k) for k in range(3)] for r in consts)
+                out = mapping_interval(p0, _vec(iv, a), loc, rot, scale)
+            out = out or [_unbounded(iv.get(a))] * 3
+            src = _vec(iv, a)
+            for k in range(3):
+                iv.put(dst + k, *out[k], *src)
+        elif name == "checker":
+            for k in range(3):
+                iv.put(dst + k, *_hull(iv.get(b + k), iv.get(c + k)))
+            iv.put(dst + 3, *_range(iv.get(a), 0.0, 1.0))
+        elif name == "ramp":
+            f = iv.get(a)
+            for ch in range(4):
+                iv.put(dst + ch, *ramp_interval(program.data, p0, 4, ch, f))
+        elif name == "combine":
+            for k, r in enumerate((a, b, c)):
+                iv.put(dst + k, *iv.get(r))
+        elif name == "copy":
+            src = [iv.get(a + k) for k in range(p0)]
+            for k in range(p0):
+                iv.put(dst + k, *src[k])
+        elif name == "invert":
+            t = iv.get(a)
+            for k in range(3):
+                x = iv.get(b + k)
+                one_minus = _sub((np.ones_like(x[0]),) * 2, x)
+                r = _add(_mul(t, one_minus), _mul(_sub((np.ones_like(x[0]),) * 2, t), x))
+                iv.put(dst + k, *r, x, t)
+        elif name == "rgb_to_bw":
+            parts = [iv.get(a + k) for k in range(3)]
+            w = (0.2126, 0.7152, 0.0722)
+            lo = sum(wk * p[0] for wk, p in zip(w, parts))
+            iv.put(dst, lo, sum(wk * p[1] for wk, p in zip(w, parts)), *parts)
+        elif name == "clamp":
+            x, lo_b, hi_b = iv.get(a), iv.get(b), iv.get(c)
+            r = (np.minimum(np.maximum(x[0], lo_b[0]), hi_b[0]),
+                 np.minimum(np.maximum(x[1], lo_b[1]), hi_b[1]))
+            if p0 == 1:  # range mode swaps the bounds when min > max
+                r = _hull(r, (np.minimum(np.maximum(x[0], hi_b[0]), lo_b[0]),
+                              np.minimum(np.maximum(x[1], hi_b[1]), lo_b[1])))
+            iv.put(dst, *r, x, lo_b, hi_b)
+        elif name == "map_range":
+            x = iv.get(a)
+            if all(iv.constant(b + k) for k in range(5)):
+                params = [iv.value(b + k) for k in range(5)]
+                ends = [map_range_value(e, *params, p0, bool(p1)) for e in x]
+                r = (np.minimum(ends[0], ends[1]), np.maximum(ends[0], ends[1]))
+            elif p1 and p0 < 2:  # clamped to [to min, to max]
+                r = _hull(iv.get(b + 2), iv.get(b + 3))
+            else:
+                r = _unbounded(x)
+            iv.put(dst, *r, x, *(iv.get(b + k) for k in range(5)))
+        elif name == "gradient":
+            iv.put(dst, *_range(iv.get(a), 0.0, 1.0))
+        elif name == "noise":
+            value = noise_interval(iv.get(a), iv.get(b + 1), iv.get(b + 2), p0 != 0)
+            for k in range(4):
+                iv.put(dst + k, *value)
+        else:  # attribute, normal, image, curve, gamma, hsv, fresnel, ...: no rule
+            width = 1 if name in ("fresnel", "layer_weight") else 4 if name == "image" else 3
+            for k in range(width):
+                iv.put(dst + k, *_unbounded(iv.get(dst)))
+    return iv

@@ -1,0 +1,93 @@
+"""Procedural media (renderer.media.procedural): a shader program gives the density, the
+majorant is the program's interval bound per cell (renderer.shading.intervals).
+
+The estimators stay unbiased if no density the program produces exceeds its cell's
+majorant: checked here, on the density the trackers get (shading.evaluate's entry, which
+the suite compiles for surface programs anyway, so these tests compile nothing of their
+own). That the trackers then match exp(-sigma_t * integral of the density) is checked by
+tools/procedural_tracking_check.py (ratio and delta tracking against a quadrature of the
+same program): it compiles the trackers for the procedural table type, about 5 min of CPU
+on a cold cache, beyond the suite's budget."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from renderer.errors import SceneError
+from renderer.media import compile_media
+from renderer.media.layout import MediaTable, ProceduralMediaTable
+from renderer.media.procedural import bound_violations
+from renderer.scene import Medium
+from renderer.shading.names import MAP_RANGE_TYPES, MATH_OPS
+from renderer.shading.program import INSTR, OP, ShaderProgram
+
+
+def _row(op: str, dst: int, a: int = 0, b: int = 0, c: int = 0, d: int = 0, i0: int = 0,
+         i1: int = 0) -> list[int]:
+    row = [0] * INSTR.size
+    row[:10] = [OP[op], dst, a, b, c, d, 0, i0, i1, 0]
+    return row
+
+
+def cloud_program(scale: float = 2.5, detail: float = 2.5, normalize: bool = True, to_max: float = 6.0,
+                  ramp: bool = False) -> tuple[ShaderProgram, int]:
+    """Position -> Noise (fBM) -> Map Range (linear, clamped) -> [x density scale]:
+    the usual procedural cloud. Returns (program, density register)."""
+    regs = np.zeros(24, np.float32)
+    regs[3:8] = (scale, detail, 0.55, 2.0, 0.3)  # noise: scale, detail, roughness, lacunarity, distortion
+    regs[12:17] = (0.45, 0.75, 0.0, to_max, 4.0)  # map range: from, to, steps
+    regs[18] = 1.7
+    code = [_row("position", 0), _row("noise", 8, a=0, b=3, i0=int(normalize)),
+            _row("map_range", 17, a=8, b=12, i0=MAP_RANGE_TYPES.index("LINEAR"), i1=1),
+            _row("math", 19, a=17, b=18, i0=MATH_OPS.index("MULTIPLY"))]
+    data = np.zeros(0, np.float32)
+    if ramp:  # a Color Ramp after the noise: 256 RGBA entries, a bump in the middle
+        f = np.linspace(0.0, 1.0, 256)
+        table = np.stack([np.exp(-((f - 0.55) / 0.08) ** 2) * 4.0] * 4, axis=1).astype(np.float32)
+        data = table.ravel()
+        code[2] = _row("ramp", 17, a=8, i0=0, i1=1)
+    return ShaderProgram(np.array(code, np.int32), regs, np.zeros((0, 5), np.int32), data), 19
+
+
+def procedural(program: ShaderProgram, density: int, **kw) -> Medium:
+    to_world = np.eye(4)
+    to_world[:3, :3] = [[1.0, 0.3, 0.0], [0.0, 0.8, 0.0], [0.1, 0.0, 1.2]]  # sheared, not axis-aligned
+    to_world[:3, 3] = (0.2, -0.1, 0.3)
+    return Medium("cloud", "grid", sigma_a=(0.3, 0.6, 1.0), sigma_s=(0.5, 0.4, 0.2), p0=(-1.0, -1.0, -1.0),
+                  p1=(1.0, 1.0, 1.0), to_world=to_world, program=program, program_density=density, **kw)
+
+
+def test_only_scenes_with_programs_get_the_procedural_table_type():
+    """Scenes without procedural media keep the plain MediaTable type, so their kernels
+    compile exactly as before; a procedural medium makes the table a type of its own."""
+    grid = Medium("g", "grid", sigma_s=(1.0, 1.0, 1.0), density=np.ones((2, 2, 2), np.float32))
+    assert type(compile_media([grid])) is MediaTable
+    program, reg = cloud_program()
+    assert type(compile_media([grid, procedural(program, reg)])) is ProceduralMediaTable
+
+
+@pytest.mark.parametrize("kind", ["normalized", "fbm", "ramp"])
+def test_density_never_exceeds_its_cell_majorant(kind):
+    program, reg = cloud_program(normalize=kind != "fbm", to_max=6.0 if kind != "fbm" else 3.0,
+                                 ramp=kind == "ramp")
+    mt = compile_media([procedural(program, reg)])
+    count, worst = bound_violations(mt, 0, 200_000, seed=1)
+    assert count == 0, f"{count} densities above their cell majorant (worst excess {worst:g})"
+    assert worst < 0.0
+
+
+def test_unbounded_program_is_refused_naming_the_medium():
+    program, reg = cloud_program()
+    code = np.vstack([program.code, _row("math", 20, a=0, b=1, i0=MATH_OPS.index("DIVIDE"))])
+    bad = ShaderProgram(code, program.registers, program.bindings, program.data)
+    with pytest.raises(SceneError, match="cloud"):
+        compile_media([procedural(bad, 20)])
+
+
+def test_surface_operation_is_refused():
+    program, reg = cloud_program()
+    code = np.vstack([program.code, _row("normal", 20)])
+    bad = ShaderProgram(code, program.registers, program.bindings, program.data)
+    with pytest.raises(SceneError, match="normal"):
+        compile_media([procedural(bad, reg)])
