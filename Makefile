@@ -52,9 +52,12 @@ demo: $(STAMP)
 	$(PY) examples/demo.py
 	$(PY) examples/blender_cornell.py
 
+# Two test processes (pytest-xdist), whole files to each so a module's shared renders run
+# once: most tests are one process, so serially one of two cores idles (CI: about 29 min
+# serial). Kernels compile once across both (renderer.kernels.cache locks each function).
 test: $(STAMP)
 	$(VENV)/bin/ruff check .
-	$(PY) -m pytest -q
+	$(PY) -m pytest -q -n 2 --dist loadfile
 
 lint: $(STAMP)
 	$(VENV)/bin/ruff check .
