@@ -439,7 +439,7 @@ def _npz_file(field: str) -> Edit:
 
 _BAD_FOLDERS = [
     # format version
-    (_json_set("version", 2), "version", "unsupported format version 2"),
+    (_json_set("version", 1), "version", "unsupported format version 1"),
     (_json_set("version", DELETE), "version", "missing required key"),
     (_json_set("version", "1"), "version", "must be an integer"),
     # unknown keys, at every level
