@@ -19,14 +19,15 @@ from renderer.media import compile_media
 from renderer.media.layout import MediaTable, ProceduralMediaTable
 from renderer.media.procedural import bound_violations
 from renderer.scene import Medium
+from renderer.shading.fractal import TYPES as FRACTAL_TYPES
 from renderer.shading.names import MAP_RANGE_TYPES, MATH_OPS
 from renderer.shading.program import INSTR, OP, ShaderProgram
 
 
 def _row(op: str, dst: int, a: int = 0, b: int = 0, c: int = 0, d: int = 0, i0: int = 0,
-         i1: int = 0) -> list[int]:
+         i1: int = 0, i2: int = 0) -> list[int]:
     row = [0] * INSTR.size
-    row[:10] = [OP[op], dst, a, b, c, d, 0, i0, i1, 0]
+    row[:10] = [OP[op], dst, a, b, c, d, 0, i0, i1, i2]
     return row
 
 
@@ -35,18 +36,20 @@ def cloud_program(scale: float = 2.5, detail: float = 2.5, normalize: bool = Tru
     """Position -> Noise (fBM) -> Map Range (linear, clamped) -> [x density scale]:
     the usual procedural cloud. Returns (program, density register)."""
     regs = np.zeros(24, np.float32)
-    regs[3:8] = (scale, detail, 0.55, 2.0, 0.3)  # noise: scale, detail, roughness, lacunarity, distortion
+    # noise: W, scale, detail, roughness, lacunarity, offset, gain, distortion
+    regs[3:11] = (0.0, scale, detail, 0.55, 2.0, 0.0, 1.0, 0.3)
     regs[12:17] = (0.45, 0.75, 0.0, to_max, 4.0)  # map range: from, to, steps
     regs[18] = 1.7
-    code = [_row("position", 0), _row("noise", 8, a=0, b=3, i0=int(normalize)),
-            _row("map_range", 17, a=8, b=12, i0=MAP_RANGE_TYPES.index("LINEAR"), i1=1),
+    code = [_row("position", 0), _row("noise_nd", 20, a=0, b=3, i0=3, i1=FRACTAL_TYPES.index("FBM"),
+                                      i2=int(normalize)),
+            _row("map_range", 17, a=20, b=12, i0=MAP_RANGE_TYPES.index("LINEAR"), i1=1),
             _row("math", 19, a=17, b=18, i0=MATH_OPS.index("MULTIPLY"))]
     data = np.zeros(0, np.float32)
     if ramp:  # a Color Ramp after the noise: 256 RGBA entries, a bump in the middle
         f = np.linspace(0.0, 1.0, 256)
         table = np.stack([np.exp(-((f - 0.55) / 0.08) ** 2) * 4.0] * 4, axis=1).astype(np.float32)
         data = table.ravel()
-        code[2] = _row("ramp", 17, a=8, i0=0, i1=1)
+        code[2] = _row("ramp", 17, a=20, i0=0, i1=1)
     return ShaderProgram(np.array(code, np.int32), regs, np.zeros((0, 5), np.int32), data), 19
 
 

@@ -46,7 +46,7 @@ media; a medium id is its index in the scene's list.
                                    rather than against its bound
     scratch   (MAX_STACK, DDA.size) float64  one walker row per stack entry (majorant.py)
     programs  ProceduralMediaTable only: the procedural media's programs and a scratch to run
-              them in (procedural.DensityPrograms)
+              them in (DensityPrograms, below)
 
 A few wide arrays rather than one per field: every non-inlined call passes each array of
 the tuple, so a 15-array table made a trilinear lookup ~5x slower. A homogeneous medium has
@@ -61,6 +61,7 @@ import numpy as np
 
 from renderer.layout import Layout
 from renderer.scene import MAX_STACK, MEDIUM_TYPES
+from renderer.shading.table import PROG
 
 MEDIUM_HOMOGENEOUS = MEDIUM_TYPES["homogeneous"]
 MEDIUM_GRID = MEDIUM_TYPES["grid"]
@@ -166,7 +167,7 @@ class ProceduralMediaTable(NamedTuple):
     brick_index: np.ndarray
     maj_data: np.ndarray
     scratch: np.ndarray
-    programs: tuple  # a procedural.DensityPrograms
+    programs: tuple  # a DensityPrograms (below)
 
 
 class MediaData(NamedTuple):
@@ -189,8 +190,6 @@ class MediaData(NamedTuple):
         if self.programs is None:
             return MediaTable(self.params, self.index, self.grid_data, self.brick_index, self.maj_data,
                               scratch)
-        from renderer.media.procedural import program_scratch  # (procedural.py imports this module)
-
         return ProceduralMediaTable(self.params, self.index, self.grid_data, self.brick_index, self.maj_data,
                                     scratch, program_scratch(self.programs))
 
@@ -201,3 +200,28 @@ def dda_scratch() -> np.ndarray:
     allocated outside the kernels because they are compiled without reference counting
     and so cannot allocate."""
     return np.zeros((MAX_STACK, DDA_SIZE), np.float64)
+
+
+class DensityPrograms(NamedTuple):
+    """ProceduralMediaTable.programs: MediaData.programs (the shading tuple and the density
+    register of each program) with the scratch that shading.evaluate's entry runs one point
+    in, the tracer's own (program_scratch): registers, and one row of triangle -1, unused
+    barycentrics and normal, the point (float32, as Cycles') and the density out."""
+
+    tables: tuple
+    density: np.ndarray  # (K,) int64
+    regs: np.ndarray  # (R,) float32
+    tri: np.ndarray  # (1,) int32
+    bary: np.ndarray  # (1, 3) float32
+    x: np.ndarray  # (1, 3) float32
+    n: np.ndarray  # (1, 3) float32
+    out: np.ndarray  # (1, 1) float32
+
+
+def program_scratch(programs: tuple) -> DensityPrograms:
+    """MediaData.programs with a scratch of its own (see DensityPrograms)."""
+    tables, density = programs
+    nregs = int(tables[0][:, PROG.offset("nregs")].max())
+    return DensityPrograms(tables, density, np.zeros(max(1, nregs), np.float32), np.full(1, -1, np.int32),
+                           np.zeros((1, 3), np.float32), np.zeros((1, 3), np.float32),
+                           np.array([[0.0, 0.0, 1.0]], np.float32), np.zeros((1, 1), np.float32))

@@ -31,14 +31,21 @@ in shading.evaluate's entry, compiled once for surface programs and media alike.
 from __future__ import annotations
 
 import math
-from typing import NamedTuple
 
 import numpy as np
+from numba.core import types
 from numba.extending import overload
 
 from renderer.errors import SceneError
 from renderer.kernels import JIT_OPTIONS, inline_kernel
-from renderer.media.layout import CELL_DENSITY_BOUND, I_MAJ_DIMS, I_MAJ_OFFSET, I_PROGRAM, P_TO_UNIT
+from renderer.media.layout import (
+    CELL_DENSITY_BOUND,
+    I_MAJ_DIMS,
+    I_MAJ_OFFSET,
+    I_PROGRAM,
+    P_TO_UNIT,
+    DensityPrograms,
+)
 from renderer.scene import Medium
 from renderer.shading.evaluate import evaluate_points
 from renderer.shading.intervals import run_intervals
@@ -125,31 +132,6 @@ def density_bounds(med: Medium, unit_to_world: np.ndarray, path: str, cells: int
     return bound.reshape(cells, cells, cells).astype(np.float32)
 
 
-class DensityPrograms(NamedTuple):
-    """ProceduralMediaTable.programs: MediaData.programs (the shading tuple and the density
-    register of each program) with the scratch that shading.evaluate's entry runs one point
-    in, the tracer's own (program_scratch): registers, and one row of triangle -1, unused
-    barycentrics and normal, the point (float32, as Cycles') and the density out."""
-
-    tables: tuple
-    density: np.ndarray  # (K,) int64
-    regs: np.ndarray  # (R,) float32
-    tri: np.ndarray  # (1,) int32
-    bary: np.ndarray  # (1, 3) float32
-    x: np.ndarray  # (1, 3) float32
-    n: np.ndarray  # (1, 3) float32
-    out: np.ndarray  # (1, 1) float32
-
-
-def program_scratch(programs: tuple) -> DensityPrograms:
-    """MediaData.programs with a scratch of its own (see DensityPrograms)."""
-    tables, density = programs
-    nregs = int(tables[0][:, PROG.offset("nregs")].max())
-    return DensityPrograms(tables, density, np.zeros(max(1, nregs), np.float32), np.full(1, -1, np.int32),
-                           np.zeros((1, 3), np.float32), np.zeros((1, 3), np.float32),
-                           np.array([[0.0, 0.0, 1.0]], np.float32), np.zeros((1, 1), np.float32))
-
-
 @inline_kernel
 def _run(programs, k, x):
     """Program k's density at world point x, clamped at 0 as Principled Volume clamps it (NaN
@@ -179,7 +161,9 @@ def program_density(mt, m, u, x):
 
 @overload(program_density, inline="always", jit_options=_OVERLOAD_OPTIONS)
 def _program_density(mt, m, u, x):
-    if "programs" not in getattr(mt, "fields", ()):
+    fields = tuple(getattr(mt, "fields", ()))
+    # Plain tables, and MediaData without procedural media (programs None), have none.
+    if "programs" not in fields or isinstance(mt.types[fields.index("programs")], types.NoneType):
         return lambda mt, m, u, x: -1.0
 
     def impl(mt, m, u, x):

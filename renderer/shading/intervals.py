@@ -20,7 +20,7 @@ interpreter (interpreter.py) can produce from inputs inside them. Rules, by oper
 * Noise: a range proved below from the structure of Cycles' Perlin noise (not sampled).
 * anything else: unbounded (-inf, inf); a later clamp may bound it again.
 
-Noise's range. Cycles' perlin (kernel/svm/noise.h, mirrored in noise.py) is a convex
+Noise's range. Cycles' perlin (kernel/svm/noise.h, mirrored in fractal.py) is a convex
 combination of the eight lattice corners' values: the weights are products of the quintic
 fade s(f) and 1 - s(f), which lie in [0, 1] and sum to 1. A corner's value is +-u +- v where
 u, v are two of the offsets (dx, dy, dz) from that corner, each |d| <= 1, so
@@ -45,10 +45,12 @@ import math
 
 import numpy as np
 
+from .fractal import TYPES as FRACTAL_TYPES
 from .names import MATH_OPS, RAMP_SIZE, VECTOR_OPS
 from .program import I_A, I_B, I_C, I_D, I_DST, I_OP, I_P0, I_P1, I_P2, OPCODES, ShaderProgram
 
 REL_PAD = 1e-6
+FBM = FRACTAL_TYPES.index("FBM")
 # |snoise| <= 0.982 * 3/2 (see the module docstring).
 SNOISE_BOUND = 0.982 * 1.5
 INF = math.inf
@@ -416,8 +418,10 @@ def run_intervals(program: ShaderProgram, boxes_lo: np.ndarray, boxes_hi: np.nda
             iv.put(dst, *r, x, *(iv.get(b + k) for k in range(5)))
         elif name == "gradient":
             iv.put(dst, *_range(iv.get(a), 0.0, 1.0))
-        elif name == "noise":
-            value = noise_interval(iv.get(a), iv.get(b + 1), iv.get(b + 2), p0 != 0)
+        elif name == "noise_nd" and p0 == 3 and p1 == FBM:
+            # 3D fBM only: the Perlin bound above is proved for Cycles' 3D noise; other
+            # dimensions and fractal types get no rule (such a density is refused).
+            value = noise_interval(iv.get(a), iv.get(b + 2), iv.get(b + 3), p2 != 0)
             for k in range(4):
                 iv.put(dst + k, *value)
         else:  # attribute, normal, image, curve, gamma, hsv, fresnel, ...: no rule
