@@ -20,7 +20,7 @@ from renderer.media.layout import MediaTable, ProceduralMediaTable
 from renderer.media.procedural import bound_violations
 from renderer.scene import Medium
 from renderer.shading.fractal import TYPES as FRACTAL_TYPES
-from renderer.shading.names import MAP_RANGE_TYPES, MATH_OPS
+from renderer.shading.names import MAP_RANGE_TYPES, MATH_OPS, RAMP_SIZE
 from renderer.shading.program import INSTR, OP, ShaderProgram
 
 
@@ -45,8 +45,8 @@ def cloud_program(scale: float = 2.5, detail: float = 2.5, normalize: bool = Tru
             _row("map_range", 17, a=20, b=12, i0=MAP_RANGE_TYPES.index("LINEAR"), i1=1),
             _row("math", 19, a=17, b=18, i0=MATH_OPS.index("MULTIPLY"))]
     data = np.zeros(0, np.float32)
-    if ramp:  # a Color Ramp after the noise: 256 RGBA entries, a bump in the middle
-        f = np.linspace(0.0, 1.0, 256)
+    if ramp:  # a Color Ramp after the noise: RAMP_SIZE RGBA entries, a bump in the middle
+        f = np.linspace(0.0, 1.0, RAMP_SIZE)
         table = np.stack([np.exp(-((f - 0.55) / 0.08) ** 2) * 4.0] * 4, axis=1).astype(np.float32)
         data = table.ravel()
         code[2] = _row("ramp", 17, a=20, i0=0, i1=1)
