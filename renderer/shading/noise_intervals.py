@@ -245,16 +245,17 @@ def _ridged(s, det, r, offset, gain):
     return result
 
 
-def noise_interval(dim: int, kind: int, detail, roughness, offset, gain, normalize: bool, octave=None):
+def noise_interval(dim: int, kind: int, detail, roughness, offset, gain, normalize: bool):
     """Interval of the Noise texture's value (and of each colour channel) of dimension dim
     and fractal kind (fractal.TYPES index), given intervals of its parameters (arrays, one
-    per box). octave(k), if given, is an interval of octave k's snoise (default +-N).
-    Unbounded (-inf, inf) for a dimension or kind with no rule."""
-    like = detail
+    per box). Unbounded (-inf, inf) for a dimension or kind with no rule."""
     if dim not in NOISE_SCALE or kind not in (T_FBM, T_MULTI, T_HETERO, T_HYBRID, T_RIDGED):
-        return ia.unbounded(like)
+        return ia.unbounded(detail)
     n = snoise_bound(dim)
-    s = octave or (lambda k: _const(like, -n, n))
+
+    def s(k):  # octave k's snoise: the same bound at every octave and point
+        return _const(detail, -n, n)
+
     det = _Detail(detail)
     r = (np.maximum(roughness[0], 0.0), np.maximum(roughness[1], 0.0))
     with np.errstate(invalid="ignore", over="ignore"):
