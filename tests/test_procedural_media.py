@@ -32,15 +32,15 @@ def _row(op: str, dst: int, a: int = 0, b: int = 0, c: int = 0, d: int = 0, i0: 
 
 
 def cloud_program(scale: float = 2.5, detail: float = 2.5, normalize: bool = True, to_max: float = 6.0,
-                  ramp: bool = False) -> tuple[ShaderProgram, int]:
-    """Position -> Noise (fBM) -> Map Range (linear, clamped) -> [x density scale]:
-    the usual procedural cloud. Returns (program, density register)."""
+                  ramp: bool = False, dim: int = 3, kind: str = "FBM") -> tuple[ShaderProgram, int]:
+    """Position -> Noise (3D fBM unless told) -> Map Range (linear, clamped) -> [x density
+    scale]: the usual procedural cloud. Returns (program, density register)."""
     regs = np.zeros(24, np.float32)
     # noise: W, scale, detail, roughness, lacunarity, offset, gain, distortion
-    regs[3:11] = (0.0, scale, detail, 0.55, 2.0, 0.0, 1.0, 0.3)
+    regs[3:11] = (0.4, scale, detail, 0.55, 2.0, 0.8, 1.2, 0.3)
     regs[12:17] = (0.45, 0.75, 0.0, to_max, 4.0)  # map range: from, to, steps
     regs[18] = 1.7
-    code = [_row("position", 0), _row("noise_nd", 20, a=0, b=3, i0=3, i1=FRACTAL_TYPES.index("FBM"),
+    code = [_row("position", 0), _row("noise_nd", 20, a=0, b=3, i0=dim, i1=FRACTAL_TYPES.index(kind),
                                       i2=int(normalize)),
             _row("map_range", 17, a=20, b=12, i0=MAP_RANGE_TYPES.index("LINEAR"), i1=1),
             _row("math", 19, a=17, b=18, i0=MATH_OPS.index("MULTIPLY"))]
@@ -78,6 +78,31 @@ def test_density_never_exceeds_its_cell_majorant(kind):
     count, worst = bound_violations(mt, 0, 200_000, seed=1)
     assert count == 0, f"{count} densities above their cell majorant (worst excess {worst:g})"
     assert worst < 0.0
+
+
+@pytest.mark.parametrize("dim, kind", [(4, "FBM"), (4, "MULTIFRACTAL"), (2, "HYBRID_MULTIFRACTAL"),
+                                       (1, "RIDGED_MULTIFRACTAL"), (3, "HETERO_TERRAIN")])
+def test_every_noise_dimension_and_type_renders_within_its_majorants(dim, kind):
+    """4D noise (W constant here; it may be animated), and every fractal type, has a proved
+    bound (shading.noise_intervals): such clouds compile, and no density exceeds its cell's
+    majorant."""
+    program, reg = cloud_program(normalize=False, to_max=3.0, dim=dim, kind=kind)
+    mt = compile_media([procedural(program, reg)])
+    count, worst = bound_violations(mt, 0, 100_000, seed=2)
+    assert count == 0, f"{count} densities above their cell majorant (worst excess {worst:g})"
+
+
+def test_noise_with_an_unbounded_parameter_is_refused_naming_the_medium():
+    """A Multifractal's roughness from a division by the position (no finite bound) and the
+    noise as the density (no clamp after it): the density has no bound, so the medium is
+    refused by name."""
+    program, reg = cloud_program(normalize=False, kind="MULTIFRACTAL")
+    code = np.array(program.code).reshape(-1, INSTR.size).copy()
+    divide = _row("math", 6, a=18, b=0, i0=MATH_OPS.index("DIVIDE"))  # roughness = 1.7 / x
+    bad = ShaderProgram(np.vstack([code[:1], [divide], code[1:]]), program.registers, program.bindings,
+                        program.data)
+    with pytest.raises(SceneError, match="cloud"):
+        compile_media([procedural(bad, 20)])
 
 
 def test_unbounded_program_is_refused_naming_the_medium():

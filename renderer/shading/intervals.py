@@ -8,8 +8,8 @@ interpreter (interpreter.py) can produce from inputs inside them. Rules, by oper
 
 * position: the box itself (the caller gives world-space boxes).
 * add, subtract, multiply, divide, multiply-add, min, max, abs, ...: standard interval
-  arithmetic (a product's bounds are the extremes of the four corner products; a division
-  by an interval containing 0 is unbounded).
+  arithmetic (interval_arith.py: a product's bounds are the extremes of the four corner
+  products; a division by an interval containing 0 is unbounded).
 * monotone functions (sqrt, exp, floor, Map Range with constant parameters, Clamp,
   smoothstep...): the function at the interval's ends.
 * bounded functions (sine, fract, comparisons, Gradient, Checker's factor): their range.
@@ -17,22 +17,9 @@ interpreter (interpreter.py) can produce from inputs inside them. Rules, by oper
   centre +- |M| radius.
 * Color Ramp: the least and greatest table entry between the factor's ends (the lookup
   interpolates linearly between neighbouring entries, so it never leaves that hull).
-* Noise: a range proved below from the structure of Cycles' Perlin noise (not sampled).
+* Noise (value and colour), every dimension and fractal type: a range proved from the
+  structure of Cycles' Perlin noise and fractal recurrences (noise_intervals.py, not sampled).
 * anything else: unbounded (-inf, inf); a later clamp may bound it again.
-
-Noise's range. Cycles' perlin (kernel/svm/noise.h, mirrored in fractal.py) is a convex
-combination of the eight lattice corners' values: the weights are products of the quintic
-fade s(f) and 1 - s(f), which lie in [0, 1] and sum to 1. A corner's value is +-u +- v where
-u, v are two of the offsets (dx, dy, dz) from that corner, each |d| <= 1, so
-|perlin| <= sum_c w_c (|dx_c| + |dy_c| + |dz_c|) = G(fx) + G(fy) + G(fz), with
-G(f) = (1 - s(f)) f + s(f) (1 - f) = f + s(f) (1 - 2 f). For f <= 1/2, s(f) <= s(1/2) = 1/2
-(s increases), so G(f) <= f + (1 - 2 f) / 2 = 1/2; G(f) = G(1 - f) covers f > 1/2. Hence
-|perlin| <= 3/2 and |snoise| = 0.982 |perlin| <= 1.473. fBM sums octaves with weights amp_i:
-|total| <= 1.473 sum amp_i, so the normalized output lies in [0.5 - 0.7365, 0.5 + 0.7365]
-and the plain one in +-1.473 (maxamp + amp of a fractional octave); a fractional detail
-mixes two such values convexly and stays inside. Distortion only moves the point. This is
-looser than the values met in practice (2e6 random points give |snoise| up to 0.97), which
-costs null collisions, never bias.
 
 Rounding: registers are float32 and the interpreter computes in float64, so every result
 is widened by REL_PAD times the largest magnitude among the operation's input and output
@@ -45,15 +32,25 @@ import math
 
 import numpy as np
 
-from .fractal import TYPES as FRACTAL_TYPES
+from .interval_arith import (
+    INF,
+    absolute,
+    add,
+    clamp01,
+    const_range,
+    div,
+    hull,
+    mono,
+    mul,
+    power,
+    sub,
+    unbounded,
+)
 from .names import MATH_OPS, RAMP_SIZE, VECTOR_OPS
+from .noise_intervals import noise_interval
 from .program import I_A, I_B, I_C, I_D, I_DST, I_OP, I_P0, I_P1, I_P2, OPCODES, ShaderProgram
 
 REL_PAD = 1e-6
-FBM = FRACTAL_TYPES.index("FBM")
-# |snoise| <= 0.982 * 3/2 (see the module docstring).
-SNOISE_BOUND = 0.982 * 1.5
-INF = math.inf
 
 _MATH = {name: k for k, name in enumerate(MATH_OPS)}
 _VECTOR = {name: k for k, name in enumerate(VECTOR_OPS)}
@@ -93,106 +90,42 @@ class Intervals:
 # ------------------------------------------------------------------------ interval rules
 
 
-def _add(a, b):
-    return a[0] + b[0], a[1] + b[1]
-
-
-def _sub(a, b):
-    return a[0] - b[1], a[1] - b[0]
-
-
-def _mul(a, b):
-    with np.errstate(invalid="ignore"):
-        p = np.stack([a[0] * b[0], a[0] * b[1], a[1] * b[0], a[1] * b[1]])
-    p = np.where(np.isnan(p), 0.0, p)  # 0 * inf: the product of finite values there is 0
-    return p.min(axis=0), p.max(axis=0)
-
-
-def _div(a, b):
-    """safe_divide: a / b, 0 where b == 0; unbounded where b's interval holds 0."""
-    straddles = (b[0] <= 0.0) & (b[1] >= 0.0)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        inv = (np.where(straddles, 1.0, 1.0 / b[1]), np.where(straddles, 1.0, 1.0 / b[0]))
-    lo, hi = _mul(a, inv)
-    exact_zero = (b[0] == 0.0) & (b[1] == 0.0)
-    lo = np.where(straddles, np.where(exact_zero, 0.0, -INF), lo)
-    hi = np.where(straddles, np.where(exact_zero, 0.0, INF), hi)
-    return lo, hi
-
-
-def _mono(f, a):
-    """An increasing function at the ends."""
-    with np.errstate(all="ignore"):
-        return f(a[0]), f(a[1])
-
-
-def _hull(*xs):
-    return np.minimum.reduce([x[0] for x in xs]), np.maximum.reduce([x[1] for x in xs])
-
-
-def _abs(a):
-    lo = np.where((a[0] <= 0.0) & (a[1] >= 0.0), 0.0, np.minimum(np.abs(a[0]), np.abs(a[1])))
-    return lo, np.maximum(np.abs(a[0]), np.abs(a[1]))
-
-
-def _range(a, lo, hi):
-    return np.full_like(a[0], lo), np.full_like(a[0], hi)
-
-
-def _unbounded(a):
-    return _range(a, -INF, INF)
-
-
-def _clamp01(a):
-    return np.clip(a[0], 0.0, 1.0), np.clip(a[1], 0.0, 1.0)
-
-
-def _pow(a, b):
-    """Cycles' safe_powf for a >= 0 (a^b, increasing in a for b >= 0); else unbounded."""
-    if not (np.all(a[0] >= 0.0) and np.all(b[0] >= 0.0)):
-        return _unbounded(a)
-    with np.errstate(all="ignore"):
-        c = np.stack([a[0] ** b[0], a[0] ** b[1], a[1] ** b[0], a[1] ** b[1], np.zeros_like(a[0])])
-    c = np.where(np.isnan(c), INF, c)
-    return c.min(axis=0), c.max(axis=0)
-
-
 def math_interval(op: int, a, b, c):  # noqa: C901 - one branch per Math operation
     """Interval of Math operation `op` (names.MATH_OPS) of a, b, c (intervals)."""
     name = MATH_OPS[op]
     if name == "ADD":
-        return _add(a, b)
+        return add(a, b)
     if name == "SUBTRACT":
-        return _sub(a, b)
+        return sub(a, b)
     if name == "MULTIPLY":
-        return _mul(a, b)
+        return mul(a, b)
     if name == "DIVIDE":
-        return _div(a, b)
+        return div(a, b)
     if name == "MULTIPLY_ADD":
-        return _add(_mul(a, b), c)
+        return add(mul(a, b), c)
     if name == "POWER":
-        return _pow(a, b)
+        return power(a, b)
     if name == "SQRT":
-        return _mono(lambda x: np.sqrt(np.maximum(x, 0.0)), a)
+        return mono(lambda x: np.sqrt(np.maximum(x, 0.0)), a)
     if name == "ABSOLUTE":
-        return _abs(a)
+        return absolute(a)
     if name == "EXPONENT":
-        return _mono(np.exp, a)
+        return mono(np.exp, a)
     if name == "MINIMUM":
         return np.minimum(a[0], b[0]), np.minimum(a[1], b[1])
     if name == "MAXIMUM":
         return np.maximum(a[0], b[0]), np.maximum(a[1], b[1])
     if name in ("LESS_THAN", "GREATER_THAN", "COMPARE", "FRACT"):
-        return _range(a, 0.0, 1.0)
+        return const_range(a, 0.0, 1.0)
     if name in ("SIGN", "SINE", "COSINE", "TANH"):
-        return _range(a, -1.0, 1.0)
+        return const_range(a, -1.0, 1.0)
     if name in ("FLOOR", "CEIL", "ROUND", "TRUNC"):
         rounding = {"FLOOR": np.floor, "CEIL": np.ceil, "TRUNC": np.trunc}
-        return _mono(rounding.get(name, lambda x: np.floor(x + 0.5)), a)
+        return mono(rounding.get(name, lambda x: np.floor(x + 0.5)), a)
     if name in ("RADIANS", "DEGREES"):
         k = math.pi / 180.0 if name == "RADIANS" else 180.0 / math.pi
         return a[0] * k, a[1] * k
-    return _unbounded(a)
+    return unbounded(a)
 
 
 def _vec(iv: Intervals, r: int):
@@ -209,41 +142,24 @@ def vector_interval(op: int, a, b, c, s):
         k = _MATH[per[name]]
         return [math_interval(k, a[i], b[i], c[i]) for i in range(3)], None
     if name == "MULTIPLY_ADD":
-        return [_add(_mul(a[i], b[i]), c[i]) for i in range(3)], None
+        return [add(mul(a[i], b[i]), c[i]) for i in range(3)], None
     if name == "SCALE":
-        return [_mul(a[i], s) for i in range(3)], None
+        return [mul(a[i], s) for i in range(3)], None
     if name == "ABSOLUTE":
-        return [_abs(a[i]) for i in range(3)], None
+        return [absolute(a[i]) for i in range(3)], None
     if name == "NORMALIZE":
-        return [_range(a[i], -1.0, 1.0) for i in range(3)], None
+        return [const_range(a[i], -1.0, 1.0) for i in range(3)], None
     if name == "DOT_PRODUCT":
-        return None, _add(_add(_mul(a[0], b[0]), _mul(a[1], b[1])), _mul(a[2], b[2]))
+        return None, add(add(mul(a[0], b[0]), mul(a[1], b[1])), mul(a[2], b[2]))
     if name in ("LENGTH", "DISTANCE"):
-        d = a if name == "LENGTH" else [_sub(a[i], b[i]) for i in range(3)]
-        sq = [_mul(_abs(x), _abs(x)) for x in d]
-        total = _add(_add(sq[0], sq[1]), sq[2])
-        return None, _mono(np.sqrt, total)
-    return [_unbounded(a[0])] * 3, None
+        d = a if name == "LENGTH" else [sub(a[i], b[i]) for i in range(3)]
+        sq = [mul(absolute(x), absolute(x)) for x in d]
+        total = add(add(sq[0], sq[1]), sq[2])
+        return None, mono(np.sqrt, total)
+    return [unbounded(a[0])] * 3, None
 
 
 # ------------------------------------------------------------------------ texture rules
-
-
-def noise_interval(a, detail, roughness, normalize: bool):
-    """(value, colour) interval of the Noise texture (see the module docstring)."""
-    if normalize:
-        lo, hi = 0.5 - 0.5 * SNOISE_BOUND, 0.5 + 0.5 * SNOISE_BOUND
-        return _range(a, lo, hi)
-    # sum of amplitudes for the largest detail and roughness the intervals allow
-    d = np.clip(detail[1], 0.0, 15.0)
-    r = np.maximum(roughness[1], 0.0)
-    total = np.zeros_like(d)
-    amp = np.ones_like(d)
-    for k in range(17):  # octaves 0 .. floor(d), plus the fractional one: at most 17
-        total = total + np.where(k <= np.floor(d) + 1.0, amp, 0.0)
-        amp = amp * r
-    bound = SNOISE_BOUND * total
-    return -bound, bound
 
 
 def _euler(r):
@@ -277,7 +193,7 @@ def mapping_interval(kind: int, v, loc, rot, scale):
         return _affine(inv, -inv @ np.asarray(loc, np.float64), v)
     if kind == 2:
         return _affine(m @ np.diag(s), np.zeros(3), v)
-    return [_range(v[0], -1.0, 1.0)] * 3
+    return [const_range(v[0], -1.0, 1.0)] * 3
 
 
 def map_range_value(v: np.ndarray, fmin, fmax, tmin, tmax, steps, kind: int, clamp: bool) -> np.ndarray:
@@ -335,29 +251,29 @@ def run_intervals(program: ShaderProgram, boxes_lo: np.ndarray, boxes_hi: np.nda
         elif name == "math":
             lo, hi = math_interval(p0, iv.get(a), iv.get(b), iv.get(c))
             if p1:
-                lo, hi = _clamp01((lo, hi))
+                lo, hi = clamp01((lo, hi))
             iv.put(dst, lo, hi, iv.get(a), iv.get(b), iv.get(c))
         elif name == "vector_math":
             va, vb, vc = _vec(iv, a), _vec(iv, b), _vec(iv, c)
             vec, scalar = vector_interval(p0, va, vb, vc, iv.get(int(ins[I_D])))
             if p1:
-                iv.put(dst, *(scalar if scalar is not None else _unbounded(va[0])), *va, *vb)
+                iv.put(dst, *(scalar if scalar is not None else unbounded(va[0])), *va, *vb)
             else:
-                vec = vec if vec is not None else [_range(va[0], 0.0, 0.0)] * 3
+                vec = vec if vec is not None else [const_range(va[0], 0.0, 0.0)] * 3
                 for k in range(3):
                     iv.put(dst + k, *vec[k], va[k], vb[k], vc[k])
         elif name in ("mix", "mix_float"):
             t = iv.get(a)
             if p1:
-                t = _clamp01(t)
+                t = clamp01(t)
             width = 3 if name == "mix" else 1
             blend_mix = name == "mix_float" or p0 == 0
             for k in range(width):
                 x, y = iv.get(b + k), iv.get(c + k)
                 one = (np.ones_like(t[0]),) * 2
-                r = _add(_mul(_sub(one, t), x), _mul(t, y)) if blend_mix else _unbounded(x)
+                r = add(mul(sub(one, t), x), mul(t, y)) if blend_mix else unbounded(x)
                 if name == "mix" and p2:
-                    r = _clamp01(r)
+                    r = clamp01(r)
                 iv.put(dst + k, *r, x, y, t)
         elif name == "mapping":
             consts = [b, c, int(ins[I_D])]
@@ -366,14 +282,14 @@ def run_intervals(program: ShaderProgram, boxes_lo: np.ndarray, boxes_hi: np.nda
             if fixed:
                 loc, rot, scale = ([iv.value(r + k) for k in range(3)] for r in consts)
                 out = mapping_interval(p0, _vec(iv, a), loc, rot, scale)
-            out = out or [_unbounded(iv.get(a))] * 3
+            out = out or [unbounded(iv.get(a))] * 3
             src = _vec(iv, a)
             for k in range(3):
                 iv.put(dst + k, *out[k], *src)
         elif name == "checker":
             for k in range(3):
-                iv.put(dst + k, *_hull(iv.get(b + k), iv.get(c + k)))
-            iv.put(dst + 3, *_range(iv.get(a), 0.0, 1.0))
+                iv.put(dst + k, *hull(iv.get(b + k), iv.get(c + k)))
+            iv.put(dst + 3, *const_range(iv.get(a), 0.0, 1.0))
         elif name == "ramp":
             f = iv.get(a)
             for ch in range(4):
@@ -389,8 +305,8 @@ def run_intervals(program: ShaderProgram, boxes_lo: np.ndarray, boxes_hi: np.nda
             t = iv.get(a)
             for k in range(3):
                 x = iv.get(b + k)
-                one_minus = _sub((np.ones_like(x[0]),) * 2, x)
-                r = _add(_mul(t, one_minus), _mul(_sub((np.ones_like(x[0]),) * 2, t), x))
+                one_minus = sub((np.ones_like(x[0]),) * 2, x)
+                r = add(mul(t, one_minus), mul(sub((np.ones_like(x[0]),) * 2, t), x))
                 iv.put(dst + k, *r, x, t)
         elif name == "rgb_to_bw":
             parts = [iv.get(a + k) for k in range(3)]
@@ -402,7 +318,7 @@ def run_intervals(program: ShaderProgram, boxes_lo: np.ndarray, boxes_hi: np.nda
             r = (np.minimum(np.maximum(x[0], lo_b[0]), hi_b[0]),
                  np.minimum(np.maximum(x[1], lo_b[1]), hi_b[1]))
             if p0 == 1:  # range mode swaps the bounds when min > max
-                r = _hull(r, (np.minimum(np.maximum(x[0], hi_b[0]), lo_b[0]),
+                r = hull(r, (np.minimum(np.maximum(x[0], hi_b[0]), lo_b[0]),
                               np.minimum(np.maximum(x[1], hi_b[1]), lo_b[1])))
             iv.put(dst, *r, x, lo_b, hi_b)
         elif name == "map_range":
@@ -412,20 +328,19 @@ def run_intervals(program: ShaderProgram, boxes_lo: np.ndarray, boxes_hi: np.nda
                 ends = [map_range_value(e, *params, p0, bool(p1)) for e in x]
                 r = (np.minimum(ends[0], ends[1]), np.maximum(ends[0], ends[1]))
             elif p1 and p0 < 2:  # clamped to [to min, to max]
-                r = _hull(iv.get(b + 2), iv.get(b + 3))
+                r = hull(iv.get(b + 2), iv.get(b + 3))
             else:
-                r = _unbounded(x)
+                r = unbounded(x)
             iv.put(dst, *r, x, *(iv.get(b + k) for k in range(5)))
         elif name == "gradient":
-            iv.put(dst, *_range(iv.get(a), 0.0, 1.0))
-        elif name == "noise_nd" and p0 == 3 and p1 == FBM:
-            # 3D fBM only: the Perlin bound above is proved for Cycles' 3D noise; other
-            # dimensions and fractal types get no rule (such a density is refused).
-            value = noise_interval(iv.get(a), iv.get(b + 2), iv.get(b + 3), p2 != 0)
-            for k in range(4):
-                iv.put(dst + k, *value)
+            iv.put(dst, *const_range(iv.get(a), 0.0, 1.0))
+        elif name == "noise_nd":  # b..b+7: W, scale, detail, roughness, lacunarity, offset, gain, ...
+            params = [iv.get(b + k) for k in (2, 3, 5, 6)]
+            value = noise_interval(p0, p1, *params, p2 != 0)
+            for k in range(4):  # the value, and the colour (the same fractal at seeded points)
+                iv.put(dst + k, *value)  # (noise_interval pads its own rounding)
         else:  # attribute, normal, image, curve, gamma, hsv, fresnel, ...: no rule
             width = 1 if name in ("fresnel", "layer_weight") else 4 if name == "image" else 3
             for k in range(width):
-                iv.put(dst + k, *_unbounded(iv.get(dst)))
+                iv.put(dst + k, *unbounded(iv.get(dst)))
     return iv
