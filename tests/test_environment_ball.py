@@ -22,12 +22,15 @@ from renderer.lights.environment_map import build_environment
 from renderer.scene import LUMINANCE, Environment
 
 N_SAMPLES = 400_000
-SUB = 4  # midpoint points per cell along each axis for the quadratures over the ball
+# The quadratures' grid over the ball image: a multiple of the distribution's cells (k x k
+# per pixel for Linear, the pixels for Closest), 32 x 32 points per pixel.
+ROWS, COLS = 32 * H, 32 * W
+CASES = [(1.0, "linear"), (2.0e4, "linear"), (1.0, "closest"), (2.0e4, "closest")]
 
 
-def ball_env(sun: float):
+def ball_env(sun: float, interpolation: str = "linear"):
     return build_environment(Environment((1.0, 0.8, 1.2), sky_map(sun), projection="mirror_ball",
-                                         to_world=rotation_z(40.0)))
+                                         interpolation=interpolation, to_world=rotation_z(40.0)))
 
 
 @njit(cache=False)
@@ -85,24 +88,22 @@ def test_ball_is_an_equal_area_map_with_d_omega_16_du_dv():
         assert np.linalg.norm(np.cross(da, db)) == pytest.approx(4.0, rel=1e-5), (a, b)
 
 
-@pytest.mark.parametrize("sun", [1.0, 2.0e4])
-def test_pdf_integrates_to_one_over_the_sphere(sun):
+@pytest.mark.parametrize("sun, interpolation", CASES)
+def test_pdf_integrates_to_one_over_the_sphere(sun, interpolation):
     """The cells' part is constant on cells wholly inside the disk, which the sub-grid tiles
     exactly; only the rim's ring (uniform over s >= s_min) is cut by the grid, an error of
     about its probability x the ring's boundary cells / its cells (< 1e-2 x rim)."""
-    env = ball_env(sun)
-    rows, cols = env[1].shape
-    total, _, _ = _ball_quadrature(env, SUB * rows, SUB * cols)
+    env = ball_env(sun, interpolation)
+    total, _, _ = _ball_quadrature(env, ROWS, COLS)
     rim = env[5][INFO_RIM_PROB]
-    assert 0.0 < rim < 0.05, rim
+    assert 0.0 < rim < 0.2, rim
     assert abs(total - 1.0) < 1e-2 * rim + 1e-9, (total, rim)
 
 
-@pytest.mark.parametrize("sun", [1.0, 2.0e4])
-def test_samples_follow_the_pdf_they_report(sun):
-    env = ball_env(sun)
-    rows, cols = env[1].shape
-    _, radiance, mass = _ball_quadrature(env, SUB * rows, SUB * cols)
+@pytest.mark.parametrize("sun, interpolation", CASES)
+def test_samples_follow_the_pdf_they_report(sun, interpolation):
+    env = ball_env(sun, interpolation)
+    _, radiance, mass = _ball_quadrature(env, ROWS, COLS)
     out = _draw(env, np.random.default_rng(11).random((N_SAMPLES, 2)))
     assert np.isfinite(out).all() and (out[:, 2] > 0).all()
     # The pdf a sample reports is the pdf of its direction (what MIS weighs at escape).
@@ -118,7 +119,7 @@ def test_samples_follow_the_pdf_they_report(sun):
     pixel = (np.clip((out[:, 1] * H).astype(int), 0, H - 1) * W
              + np.clip((out[:, 0] * W).astype(int), 0, W - 1))
     counts = np.bincount(pixel, minlength=H * W)
-    expected = N_SAMPLES * mass.reshape(H, SUB * rows // H, W, SUB * cols // W).sum(axis=(1, 3)).ravel()
+    expected = N_SAMPLES * mass.reshape(H, ROWS // H, W, COLS // W).sum(axis=(1, 3)).ravel()
     big = expected >= 10
     observed = np.append(counts[big], counts[~big].sum())
     wanted = np.append(expected[big], expected[~big].sum())

@@ -1,4 +1,4 @@
-"""An environment light from an equirectangular radiance map (a world lit by an HDRI, as
+"""An environment light from an equirectangular or mirror-ball radiance map (a world lit by an HDRI, as
 Cycles' Environment Texture on the Background), evaluated per escaped ray and sampled by
 importance.
 
