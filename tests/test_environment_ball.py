@@ -18,7 +18,7 @@ from test_environment import H, W, Z, rotation_z, sky_map
 from renderer.lights.environment import environment_radiance, sample_environment
 from renderer.lights.environment_ball import ball_direction
 from renderer.lights.environment_lookup import INFO_RIM_PROB, mirror_ball_uv, to_map
-from renderer.lights.environment_map import build_environment
+from renderer.lights.environment_map import build_environment, mean_radiance
 from renderer.scene import LUMINANCE, Environment
 
 N_SAMPLES = 400_000
@@ -126,3 +126,14 @@ def test_samples_follow_the_pdf_they_report(sun, interpolation):
     chi2 = ((observed - wanted) ** 2 / wanted).sum()
     dof = observed.size - 1
     assert (chi2 - dof) / math.sqrt(2 * dof) < Z, (chi2, dof)
+
+
+@pytest.mark.parametrize("sun, interpolation", CASES)
+def test_mean_radiance_is_the_integral_over_the_ball(sun, interpolation):
+    """The light's power (mean_radiance, from the pixels and the part of each in the disk)
+    against the quadrature of what the kernels read; they differ only where Linear spreads
+    a pixel across the rim."""
+    environment = Environment((1.0, 0.8, 1.2), sky_map(sun), projection="mirror_ball",
+                              interpolation=interpolation, to_world=rotation_z(40.0))
+    _, radiance, _ = _ball_quadrature(build_environment(environment), ROWS, COLS)
+    np.testing.assert_allclose(mean_radiance(environment), radiance / (4.0 * math.pi), rtol=2e-3)

@@ -31,7 +31,7 @@ from __future__ import annotations
 
 import math
 
-from ..kernels import inline_kernel, kernel
+from ..kernels import inline_kernel
 from ..scene import ENV_INTERPOLATIONS, ENV_PROJECTIONS
 
 ENV_IMAGE, ENV_FUNC, ENV_ROW_CDF, ENV_COL_CDF, ENV_ROT, ENV_INFO = range(6)
@@ -140,17 +140,3 @@ def _read(env, u, v, wrap):
     g = a * img[i0, j0, 1] + b * img[i0, j1, 1] + c * img[i1, j0, 1] + e * img[i1, j1, 1]
     bl = a * img[i0, j0, 2] + b * img[i0, j1, 2] + c * img[i1, j0, 2] + e * img[i1, j1, 2]
     return (r * info[0], g * info[1], bl * info[2])
-
-
-@kernel
-def evaluate_grid(env, out):
-    """out (rows, cols, 3): the map's radiance averaged over 2 x 2 points of every cell of an
-    equirectangular grid (renderer.lights.environment_map builds a distribution from it)."""
-    rows, cols = out.shape[0], out.shape[1]
-    for i in range(rows):
-        for j in range(cols):
-            for a in range(2):
-                for b in range(2):
-                    le = lookup(env, (j + 0.25 + 0.5 * b) / cols, (i + 0.25 + 0.5 * a) / rows)
-                    for c in range(3):
-                        out[i, j, c] += 0.25 * le[c]

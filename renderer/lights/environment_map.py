@@ -31,12 +31,7 @@ from .environment_lookup import (
     INFO_RIM_S,
     INFO_TINT,
     MIRROR_BALL,
-    evaluate_grid,
 )
-
-# A mirror ball's mean radiance (the light's power) is taken over an equirectangular grid of
-# at most this many rows (twice as many columns), evaluated at 2 x 2 points per cell.
-MAX_GRID_ROWS = 512
 
 # Cycles evaluates its background map at 1024 columns by default (world.cycles.
 # sample_map_resolution); an image narrower than that gets its pixels split into k x k cells
@@ -79,11 +74,14 @@ def mean_radiance(env: Environment) -> np.ndarray:
     per unit area, for choosing among lights."""
     if env.radiance_map is None:
         return np.asarray(env.radiance, np.float64)
-    if env.projection == "mirror_ball":
-        image, tint = _grid_radiance(_reader(env)), np.ones(3)  # the grid's radiance holds the tint
-    else:
-        image, tint = np.asarray(env.radiance_map, np.float64), np.asarray(env.radiance, np.float64)
+    image, tint = np.asarray(env.radiance_map, np.float64), np.asarray(env.radiance, np.float64)
     h, w = image.shape[:2]
+    if env.projection == "mirror_ball":
+        # d omega = 16 du dv (renderer.lights.environment_ball): the mean over the sphere is
+        # 4 / pi x the integral over the disk, a pixel's integral its value / (h w) (Linear's
+        # tents integrate to one pixel each), times the part of the pixel inside the disk.
+        inside = np.einsum("ijc,ij->c", image, _disk_fraction(h, w)) / (h * w)
+        return 4.0 / math.pi * inside * tint
     sin_theta = np.sin(math.pi * (np.arange(h) + 0.5) / h)
     solid = sin_theta * (2.0 * math.pi / w) * (math.pi / h)  # solid angle of a pixel of row i
     integral = np.einsum("ijc,i->c", image, solid)
@@ -100,15 +98,6 @@ def _reader(env: Environment) -> tuple:
     # world -> map: the inverse of an orthogonal matrix is its transpose
     rot = np.ascontiguousarray(np.asarray(env.to_world, np.float64)[:3, :3].T)
     return (image, None, None, None, rot, info)
-
-
-def _grid_radiance(reader: tuple) -> np.ndarray:
-    """(rows, 2 rows, 3) radiance of a map of any projection averaged over the cells of an
-    equirectangular grid (2 x 2 points each)."""
-    rows = int(min(max(reader[0].shape[0], 16), MAX_GRID_ROWS))
-    out = np.zeros((rows, 2 * rows, 3))
-    evaluate_grid(reader, out)
-    return out
 
 
 def _pixel_density(image: np.ndarray, interpolation: int) -> np.ndarray:
@@ -130,19 +119,37 @@ def _ball_density(image: np.ndarray, interpolation: int) -> tuple[np.ndarray, fl
     crosses the rim; the probability is the crossing cells' share of the luminance (their
     whole area counted, which errs towards sampling the rim more)."""
     lum = _cell_luminance(image, interpolation, wrap=False)
-    h, w = lum.shape
-    a = 2.0 * np.arange(w + 1) / w - 1.0  # the cells' edges in ball coordinates (a, b) = 2 (u, v) - 1
-    b = 2.0 * np.arange(h + 1) / h - 1.0
-    far = np.maximum(b[:-1] ** 2, b[1:] ** 2)[:, None] + np.maximum(a[:-1] ** 2, a[1:] ** 2)[None, :]
-    near_a = np.where(a[:-1] * a[1:] < 0.0, 0.0, np.minimum(a[:-1] ** 2, a[1:] ** 2))
-    near_b = np.where(b[:-1] * b[1:] < 0.0, 0.0, np.minimum(b[:-1] ** 2, b[1:] ** 2))
-    near = near_b[:, None] + near_a[None, :]
+    near, far = _disk_reach(*lum.shape)
     inner = far <= 1.0  # a cell is inside the (convex) disk when its farthest corner is
     crossing = (near < 1.0) & ~inner
     s_min = float(near[crossing].min()) if crossing.any() else 1.0
     inner_power, rim_power = lum[inner].sum(), lum[crossing].sum()
     rim = rim_power / (inner_power + rim_power) if rim_power > 0.0 else 0.0
     return np.ascontiguousarray(np.where(inner, lum, 0.0)), float(rim), s_min
+
+
+def _disk_reach(h: int, w: int) -> tuple[np.ndarray, np.ndarray]:
+    """(near, far): the smallest and largest s = a^2 + b^2 over each of h x w cells of a ball
+    image, in ball coordinates (a, b) = 2 (u, v) - 1."""
+    a = 2.0 * np.arange(w + 1) / w - 1.0  # the cells' edges
+    b = 2.0 * np.arange(h + 1) / h - 1.0
+    far = np.maximum(b[:-1] ** 2, b[1:] ** 2)[:, None] + np.maximum(a[:-1] ** 2, a[1:] ** 2)[None, :]
+    near_a = np.where(a[:-1] * a[1:] < 0.0, 0.0, np.minimum(a[:-1] ** 2, a[1:] ** 2))
+    near_b = np.where(b[:-1] * b[1:] < 0.0, 0.0, np.minimum(b[:-1] ** 2, b[1:] ** 2))
+    return near_b[:, None] + near_a[None, :], far
+
+
+def _disk_fraction(h: int, w: int, points: int = 8) -> np.ndarray:
+    """(h, w) part of each cell of a ball image inside the disk: 1 or 0 for cells wholly in
+    or out, a midpoint rule on points x points for those the rim crosses."""
+    near, far = _disk_reach(h, w)
+    fraction = (far <= 1.0).astype(np.float64)
+    i, j = np.nonzero((near < 1.0) & (far > 1.0))
+    t = (np.arange(points) + 0.5) / points
+    a = 2.0 * (j[:, None] + t) / w - 1.0
+    b = 2.0 * (i[:, None] + t) / h - 1.0
+    fraction[i, j] = (a[:, None, :] ** 2 + b[:, :, None] ** 2 <= 1.0).mean(axis=(1, 2))
+    return fraction
 
 
 def _cell_luminance(image: np.ndarray, interpolation: int, wrap: bool) -> np.ndarray:
