@@ -1,18 +1,17 @@
 """The environment map's tables: what renderer.lights.environment's kernels read.
 
-`build_environment` turns an Environment's equirectangular radiance map into the kernel
-tuple below (the importance-sampling distribution included); `mean_radiance` gives the
-light table the environment's power. The density over the map's (u, v) is constant per
-cell, proportional to f[i, j] = (the mean of the interpolated luminance over the cell) x
-sin(theta at the row's centre), as pbrt's 2-D piecewise-constant distribution and Cycles'
-background map; a cell is a pixel, or for an image under MAP_COLUMNS / 2 columns a k x k
-part of one.
+`build_environment` turns an Environment's radiance map (equirectangular or mirror ball)
+into the kernel tuple below (the importance-sampling distribution included);
+`mean_radiance` gives the light table the environment's power. For an equirectangular map
+the density over its (u, v) is constant per cell, proportional to f[i, j] = (the mean of
+the interpolated luminance over the cell) x sin(theta at the row's centre), as pbrt's 2-D
+piecewise-constant distribution and Cycles' background map; a cell is a pixel, or for an
+image under MAP_COLUMNS / 2 columns a k x k part of one.
 
 Kernel tuple: laid out in renderer.lights.environment_lookup (None for a constant world,
 so that no kernel compiles the map's code).
-For an equirectangular image the distribution is over its own (u, v) (H, W above); a
-mirror-ball image is sampled on its own cells too, over the ball's disk (_ball_density; the
-mapping and its Jacobian are derived in renderer.lights.environment).
+A mirror-ball image is sampled on its own cells too, over the ball's disk (_ball_density;
+the mapping, its Jacobian and the rim are in renderer.lights.environment_ball).
 """
 
 from __future__ import annotations
@@ -111,7 +110,7 @@ def _pixel_density(image: np.ndarray, interpolation: int) -> np.ndarray:
 
 def _ball_density(image: np.ndarray, interpolation: int) -> tuple[np.ndarray, float, float]:
     """(f, rim probability, s_min) of a mirror-ball map, sampled on its own cells (see
-    renderer.lights.environment: the ball is an equal-area map of the sphere, so f needs no
+    renderer.lights.environment_ball: the ball is an equal-area map of the sphere, so f needs no
     Jacobian). f is the cells' mean luminance (_cell_luminance, clamped in u) on the cells
     wholly inside the ball's disk, 0 elsewhere. The rest of the disk, a ragged ring at the
     rim, is covered by a second technique drawn with the rim probability: uniform over the
