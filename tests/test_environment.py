@@ -238,7 +238,7 @@ def test_plane_under_an_hdri_matches_quadrature_for_every_sampling(projection):
     sampling, BSDF sampling and their MIS all give the quadrature's value, and MIS has far
     less variance than BSDF sampling alone (the sun found by importance, not by chance).
     The same image read as a mirror ball puts the sun elsewhere, and its distribution comes
-    from the grid evaluated from the ball."""
+    from the ball's own image cells (renderer.lights.environment_ball)."""
     env = Environment((1.0, 0.8, 1.2), sky_map(), projection=projection, to_world=rotation_z(40.0))
     want = _plane_radiance(env)
     variance = {s: _check_against(render_film(_plane_scene(env, s)), want) for s in ("mis", "nee", "bsdf")}

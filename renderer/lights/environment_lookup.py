@@ -15,13 +15,15 @@ Where the radiance comes from is one function, `lookup`: a later world program s
 its own evaluation. The map's tables are one tuple, `env`, laid out as below (built by
 renderer.lights.environment_map; sampled by renderer.lights.environment):
   ENV_IMAGE    (H, W, 3) float32  radiance, W/(m^2 sr), before the tint
-  ENV_FUNC     (H, W) float64     f, the unnormalised density per pixel
-  ENV_ROW_CDF  (H + 1,) float64   marginal cdf over rows
-  ENV_COL_CDF  (H, W + 1) float64 conditional cdf over the columns of each row
+  ENV_FUNC     (h, w) float64     f, the unnormalised density per cell (of the equirectangular
+                                  (u, v), or of a mirror ball's image)
+  ENV_ROW_CDF  (h + 1,) float64   marginal cdf over rows
+  ENV_COL_CDF  (h, w + 1) float64 conditional cdf over the columns of each row
   ENV_ROT      (3, 3) float64     world -> map rotation
-  ENV_INFO     (6,) float64       tint r, g, b; H W / sum(f) (normalises f into p(u, v));
-                                  interpolation code (ENV_INTERPOLATIONS); projection code
-                                  (ENV_PROJECTIONS)
+  ENV_INFO     (8,) float64       tint r, g, b; (1 - rim probability) h w / sum(f) (normalises
+                                  f into p(u, v)); interpolation code (ENV_INTERPOLATIONS);
+                                  projection code (ENV_PROJECTIONS); for a mirror ball, the
+                                  probability of sampling its rim and the rim's inner s = r^2
 This module imports neither the light table nor the map builder, which both use it.
 """
 
@@ -29,11 +31,11 @@ from __future__ import annotations
 
 import math
 
-from ..kernels import inline_kernel, kernel
+from ..kernels import inline_kernel
 from ..scene import ENV_INTERPOLATIONS, ENV_PROJECTIONS
 
 ENV_IMAGE, ENV_FUNC, ENV_ROW_CDF, ENV_COL_CDF, ENV_ROT, ENV_INFO = range(6)
-INFO_TINT, INFO_NORM, INFO_INTERP, INFO_PROJ = 0, 3, 4, 5
+INFO_TINT, INFO_NORM, INFO_INTERP, INFO_PROJ, INFO_RIM_PROB, INFO_RIM_S = 0, 3, 4, 5, 6, 7
 CLOSEST = ENV_INTERPOLATIONS["closest"]
 MIRROR_BALL = ENV_PROJECTIONS["mirror_ball"]
 
@@ -41,15 +43,30 @@ MIRROR_BALL = ENV_PROJECTIONS["mirror_ball"]
 @inline_kernel
 def direction_to_uv(env, d):
     """(u, v, sin theta) of world direction d (need not be unit) in the map's frame."""
-    r = env[ENV_ROT]
-    mx = r[0, 0] * d[0] + r[0, 1] * d[1] + r[0, 2] * d[2]
-    my = r[1, 0] * d[0] + r[1, 1] * d[1] + r[1, 2] * d[2]
-    mz = r[2, 0] * d[0] + r[2, 1] * d[1] + r[2, 2] * d[2]
+    mx, my, mz = to_map(env, d)
     n = math.sqrt(mx * mx + my * my + mz * mz)
     z = min(1.0, max(-1.0, mz / n)) if n > 0.0 else 1.0
     u = 0.5 - math.atan2(my, mx) * (0.5 / math.pi)
     v = 1.0 - math.acos(z) / math.pi
     return u, v, math.sqrt(max(0.0, 1.0 - z * z))
+
+
+@inline_kernel
+def to_map(env, d):
+    """World direction d in the map's frame (R d; not normalised)."""
+    r = env[ENV_ROT]
+    return (r[0, 0] * d[0] + r[0, 1] * d[1] + r[0, 2] * d[2],
+            r[1, 0] * d[0] + r[1, 1] * d[1] + r[1, 2] * d[2],
+            r[2, 0] * d[0] + r[2, 1] * d[1] + r[2, 2] * d[2])
+
+
+@inline_kernel
+def from_map(env, m):
+    """Map-frame direction m in the world (R^T m: R is orthogonal)."""
+    r = env[ENV_ROT]
+    return (r[0, 0] * m[0] + r[1, 0] * m[1] + r[2, 0] * m[2],
+            r[0, 1] * m[0] + r[1, 1] * m[1] + r[2, 1] * m[2],
+            r[0, 2] * m[0] + r[1, 2] * m[1] + r[2, 2] * m[2])
 
 
 @inline_kernel
@@ -65,11 +82,7 @@ def _uv_to_map(u, v):
 def uv_to_direction(env, u, v):
     """World direction (unit) of map coordinates (u, v), and sin theta."""
     m, sin_t = _uv_to_map(u, v)
-    r = env[ENV_ROT]  # orthogonal: map -> world is its transpose
-    d = (r[0, 0] * m[0] + r[1, 0] * m[1] + r[2, 0] * m[2],
-         r[0, 1] * m[0] + r[1, 1] * m[1] + r[2, 1] * m[2],
-         r[0, 2] * m[0] + r[1, 2] * m[1] + r[2, 2] * m[2])
-    return d, sin_t
+    return from_map(env, m), sin_t
 
 
 @inline_kernel
@@ -127,17 +140,3 @@ def _read(env, u, v, wrap):
     g = a * img[i0, j0, 1] + b * img[i0, j1, 1] + c * img[i1, j0, 1] + e * img[i1, j1, 1]
     bl = a * img[i0, j0, 2] + b * img[i0, j1, 2] + c * img[i1, j0, 2] + e * img[i1, j1, 2]
     return (r * info[0], g * info[1], bl * info[2])
-
-
-@kernel
-def evaluate_grid(env, out):
-    """out (rows, cols, 3): the map's radiance averaged over 2 x 2 points of every cell of an
-    equirectangular grid (renderer.lights.environment_map builds a distribution from it)."""
-    rows, cols = out.shape[0], out.shape[1]
-    for i in range(rows):
-        for j in range(cols):
-            for a in range(2):
-                for b in range(2):
-                    le = lookup(env, (j + 0.25 + 0.5 * b) / cols, (i + 0.25 + 0.5 * a) / rows)
-                    for c in range(3):
-                        out[i, j, c] += 0.25 * le[c]
