@@ -6,6 +6,9 @@ Multifractal, Hybrid Multifractal, Ridged Multifractal and Hetero Terrain over i
 A point of any dimension travels as four floats (x, y, z, w); 1D uses x only, 2D x and y,
 3D x, y and z (the unused ones stay 0, so scaling them by the lacunarity changes nothing).
 
+The distortion's noise is computed apart, bit-exact in float32 as Cycles rounds it
+(perlin32.py): the colour's offset points would amplify its round-off.
+
 Output ranges (for interval bounds of programs): snoise in [-1, 1] (Cycles' scale factors
 keep Perlin noise there); normalized fBM in [0, 1]; un-normalized fBM in
 [-S, S] with S = sum of the octave amplitudes (roughness^i, the fractional octave included);
