@@ -6,6 +6,9 @@ Multifractal, Hybrid Multifractal, Ridged Multifractal and Hetero Terrain over i
 A point of any dimension travels as four floats (x, y, z, w); 1D uses x only, 2D x and y,
 3D x, y and z (the unused ones stay 0, so scaling them by the lacunarity changes nothing).
 
+The distortion's noise is computed apart, bit-exact in float32 as Cycles rounds it
+(perlin32.py): the colour's offset points would amplify its round-off.
+
 Output ranges (for interval bounds of programs): snoise in [-1, 1] (Cycles' scale factors
 keep Perlin noise there); normalized fBM in [0, 1]; un-normalized fBM in
 [-S, S] with S = sum of the octave amplitudes (roughness^i, the fractional octave included);
@@ -20,6 +23,7 @@ import numpy as np
 from renderer.kernels import inline_kernel, kernel
 
 from .hash import _M, hash_uint, hash_uint2, hash_uint3, hash_uint4
+from .perlin32 import displaced, snoise32
 
 TYPES = ("MULTIFRACTAL", "FBM", "HYBRID_MULTIFRACTAL", "RIDGED_MULTIFRACTAL", "HETERO_TERRAIN")
 T_MULTI, T_FBM, T_HYBRID, T_RIDGED, T_HETERO = range(5)
@@ -292,9 +296,12 @@ def _seeded(dim, seed, x, y, z, w):
 
 
 @inline_kernel
-def _distort(dim, seed, x, y, z, w, distortion):
-    sx, sy, sz, sw = _seeded(dim, seed, x, y, z, w)
-    return _f32(snoise(dim, sx, sy, sz, sw) * distortion)
+def _distorted(dim, axis, x, y, z, w, distortion):
+    """Coordinate `axis` of (x, y, z, w) moved by the noise at seed `axis`, in float32
+    exactly as Cycles rounds it (perlin32: the colour's offset points amplify a float32
+    step of it)."""
+    sx, sy, sz, sw = _seeded(dim, axis, x, y, z, w)
+    return float(displaced(dim, axis, (x, y, z, w)[axis], snoise32(dim, sx, sy, sz, sw), distortion))
 
 
 @kernel
@@ -307,12 +314,20 @@ def noise_texture(dim, kind, x, y, z, w, detail, roughness, lacunarity, offset, 
     roughness = max(roughness, 0.0)
     x, y, z, w = _scaled(x, y, z, w, 1.0)
     if distortion != 0.0:
-        # One noise per used component, at seeds 0 .. dim - 1 (unused components stay 0).
-        dx = _distort(dim, 0, x, y, z, w, distortion)
-        dy = _distort(dim, 1, x, y, z, w, distortion) if dim > 1 else 0.0
-        dz = _distort(dim, 2, x, y, z, w, distortion) if dim > 2 else 0.0
-        dw = _distort(dim, 3, x, y, z, w, distortion) if dim > 3 else 0.0
-        x, y, z, w = _f32(x + dx), _f32(y + dy), _f32(z + dz), _f32(w + dw)
+        # One noise per used component, at seeds 0 .. dim - 1, all at the undistorted point
+        # (unused components stay 0). A loop: literal axes would compile _distorted four times.
+        dx, dy, dz, dw = x, y, z, w
+        for axis in range(dim):
+            moved = _distorted(dim, axis, x, y, z, w, distortion)
+            if axis == 0:
+                dx = moved
+            elif axis == 1:
+                dy = moved
+            elif axis == 2:
+                dz = moved
+            else:
+                dw = moved
+        x, y, z, w = dx, dy, dz, dw
     value = fractal(dim, kind, x, y, z, w, detail, roughness, lacunarity, offset, gain, normalize)
     gx, gy, gz, gw = _seeded(dim, dim, x, y, z, w)
     g = fractal(dim, kind, gx, gy, gz, gw, detail, roughness, lacunarity, offset, gain, normalize)
