@@ -156,3 +156,11 @@ def helper_kernel(func) -> InlineDispatcher:
 def inline_kernel(func) -> InlineDispatcher:
     """Compiled once per argument types, inlined by LLVM at every call (see above)."""
     return _make(InlineDispatcher, func, forceinline=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)
+
+
+def exact_kernel(func) -> InlineDispatcher:
+    """An inline_kernel compiled without fast-math: one float32 rounding per operation and no
+    contraction of a * b + c, for code that must round as the C++ it mirrors does
+    (renderer.kernels.exact)."""
+    return _make(InlineDispatcher, func, fastmath=False, forceinline=True, no_cpython_wrapper=True,
+                 no_cfunc_wrapper=True)

@@ -16,13 +16,9 @@ from llvmlite import ir
 from numba import types
 from numba.extending import intrinsic
 
-from renderer.kernels import InlineDispatcher, _make
+from renderer.kernels import exact_kernel
 
-
-def exact_kernel(func) -> InlineDispatcher:
-    """An inline_kernel compiled without fast-math (no contraction of a * b + c)."""
-    return _make(InlineDispatcher, func, fastmath=False, forceinline=True, no_cpython_wrapper=True,
-                 no_cfunc_wrapper=True)
+__all__ = ["exact_kernel", "fma32"]
 
 
 @intrinsic
