@@ -3,8 +3,8 @@
 Both act on a whole medium stack (see stack.py) along a world-space ray o + t d with unit d.
 Stacks of homogeneous media use Beer's law in closed form; a stack with any grid medium is
 tracked with null collisions against a majorant walked through coarse majorant grids
-(tracking.py). Random numbers come from hashed_uniform(key, dim); every function returns the
-advanced dimension counter.
+(tracking.py; free flights by scatter tracking, scatter_tracking.py). Random numbers come
+from hashed_uniform(key, dim); every function returns the advanced dimension counter.
 """
 
 from renderer.kernels import inline_kernel, kernel
@@ -17,9 +17,10 @@ from renderer.media.homogeneous import (
     stack_constant_emission,
     stack_sigma,
 )
+from renderer.media.scatter_tracking import free_flight
 from renderer.media.spectral import channel_probabilities
 from renderer.media.stack import stack_has_emission, stack_has_grid, stack_is_empty
-from renderer.media.tracking import track_free_flight, track_transmittance
+from renderer.media.tracking import track_transmittance
 
 
 @kernel
@@ -41,7 +42,7 @@ def sample_distance(mt, stack, o, d, tmax, throughput, key, dim, uniform_channel
         return tmax, False, (1.0, 1.0, 1.0), (0.0, 0.0, 0.0), dim
     p = channel_probabilities(throughput, uniform_channel)
     if stack_has_grid(mt, stack):
-        return track_free_flight(mt, stack, o, d, tmax, p, key, dim)
+        return free_flight(mt, stack, o, d, tmax, p, key, dim)
     return sample_segment(mt, stack, segment(mt, stack, tmax), tmax, p, key, dim)
 
 
