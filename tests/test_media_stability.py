@@ -474,8 +474,11 @@ def test_transformed_grid_matches_the_exact_optical_depth(render, name):
     medium = grid(density, sigma_a=(1.0, 1.0, 1.0), p0=(-0.6, -0.5, -0.4), p1=(0.5, 0.6, 0.7),
                   to_world=to_world)
     scene = grid_in_view(medium, half=1.8, size=12, spp=256)
-    # pixels on the box's silhouette are discontinuous: many sub-pixel rays
-    assert_bounded_estimate(render(scene), expected_transmittance(scene, medium, sub=16), name)
+    # Pixels on the box's silhouette are discontinuous: many sub-pixel rays. 16 x 16 missed
+    # the mirrored box's corner in pixel 112 (reference 1.0, true mean 0.999994), which the
+    # exact transmittance of scatter tracking (renderer/media/scatter_tracking.py) resolves
+    # where delta tracking's 0-or-1 samples never showed it.
+    assert_bounded_estimate(render(scene), expected_transmittance(scene, medium, sub=64), name)
 
 
 @pytest.mark.parametrize("name", ["rotated_scaled", "mirrored"])
