@@ -8,17 +8,10 @@ do the same work in a different order, draw the same random numbers.
 CAMERA_DIMS = 4  # the sample's position in its pixel, then on the lens; the path's own events follow
 # (the position in the pixel comes from kernels.sobol, stratified over its half of the
 # pixel's samples (kernels.rng.SAMPLE_HALVES); its two dimensions stay reserved)
-# The point on the lens: dimensions 1 and 2, one stratified pair (kernels.sobol.stratified pairs
-# dimensions (d + 1) // 2, so 2 and 3 would be halves of two pairs, each stratified alone, and
-# the lens would be covered no better than by independent points). Dimension 3 goes unused.
-LENS_DIM = 1  # spent by every camera, used by thin lenses
+LENS_DIM = 2  # the two of the point on the lens (spent by every camera, used by thin lenses)
 SHADOW_DIMS = 64  # a shadow ray's own tracking through media
-# A surface's light sample: the light pick, the point on it, the direction (environment), and
-# one unused, so that the BSDF sample that follows starts at an even dimension: its
-# direction's two numbers (the second and third of its block) are then one stratified pair
-# at the first bounce, as the light point's and the environment direction's are.
-NEE_DIMS = 6
-BSDF_DIMS = 4  # a surface's BSDF sample: the lobe pick, the two of the direction, the layer pick
+NEE_DIMS = 5  # a surface's light sample: the light pick, the point on it, the direction (environment)
+BSDF_DIMS = 4  # a surface's BSDF sample: the lobe pick and three for the direction
 MEDIUM_NEE_DIMS = 2 + SHADOW_DIMS  # a medium vertex's light connection and its shadow ray
 
 # A homogeneous medium segment with a next-event vertex, as offsets from the path's counter
