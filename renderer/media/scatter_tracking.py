@@ -48,18 +48,21 @@ cell: a lone dense voxel) are crossed as tracking.py crosses them: the exact fre
 distribution of sigma_t,c, pdf sigma_t,c exp(-tau_t,c), where f and q both gain exp(-tau_t)
 and a collision scatters with weight f_k sigma_s,k / sum_c p_c q_c sigma_t,c.
 
-Procedural media have no density grid to integrate: stacks holding one keep delta tracking
-(usable_for reports which stacks this tracker takes).
+Procedural media have no density grid to integrate: scenes with one keep delta tracking for
+every grid stack (free_flight chooses per table type).
 """
 
 import math
 
+from numba.core import types
+from numba.extending import overload
+
+from renderer.kernels import JIT_OPTIONS, inline_kernel, kernel
 from renderer.kernels import fastmath as fm
-from renderer.kernels import inline_kernel, kernel
 from renderer.kernels.rng import hashed_uniform
 from renderer.media.emission import stack_emission
 from renderer.media.grid import to_unit_point, to_unit_vector
-from renderer.media.layout import DDA_MAJ, DDA_MEDIUM, I_PROGRAM
+from renderer.media.layout import DDA_MAJ, DDA_MEDIUM
 from renderer.media.regular import optical_depths, sample_flight
 from renderer.media.spectral import pick_channel
 from renderer.media.stack import EMPTY, MAX_STACK, stack_has_emission
@@ -79,17 +82,7 @@ from renderer.media.tracking import (
     track_free_flight,
 )
 
-
-@inline_kernel
-def usable_for(mt, stack):
-    """Whether scatter tracking applies: no entry of the stack is procedural."""
-    for i in range(MAX_STACK):
-        m = stack[i]
-        if m == EMPTY:
-            break
-        if is_grid(mt, m) and mt.index[m, I_PROGRAM] >= 0:
-            return False
-    return True
+_OVERLOAD_OPTIONS = {k: v for k, v in JIT_OPTIONS.items() if k != "cache"}
 
 
 @inline_kernel
@@ -292,10 +285,26 @@ def scatter_track(mt, stack, o, d, t0, t1, p, key, dim, with_emission, rows):
     return t1, False, f, (le0, le1, le2), dim
 
 
-@kernel
 def free_flight(mt, stack, o, d, tmax, p, key, dim):
     """sample_distance for grid stacks (see medium.sample_distance): scatter tracking, or
-    delta tracking (tracking.py) for stacks with a procedural medium."""
-    if not usable_for(mt, stack):
-        return track_free_flight(mt, stack, o, d, tmax, p, key, dim)
-    return scatter_track(mt, stack, o, d, 0.0, tmax, p, key, dim, stack_has_emission(mt, stack), mt.scratch)
+    delta tracking (tracking.py) in scenes with a procedural medium. Chosen per table type
+    (an overload, below), not per stack: a ProceduralMediaTable's kernels then compile one
+    tracker, not both (with both, the add-on's cold compile of shade_media for a procedural
+    scene was still running after 13 CPU minutes)."""
+    raise TypeError("free_flight runs inside kernels only")
+
+
+@overload(free_flight, jit_options=_OVERLOAD_OPTIONS)
+def _free_flight(mt, stack, o, d, tmax, p, key, dim):
+    fields = tuple(getattr(mt, "fields", ()))
+    if "programs" in fields and not isinstance(mt.types[fields.index("programs")], types.NoneType):
+        def delta(mt, stack, o, d, tmax, p, key, dim):
+            return track_free_flight(mt, stack, o, d, tmax, p, key, dim)
+
+        return delta
+
+    def scatter(mt, stack, o, d, tmax, p, key, dim):
+        emission = stack_has_emission(mt, stack)
+        return scatter_track(mt, stack, o, d, 0.0, tmax, p, key, dim, emission, mt.scratch)
+
+    return scatter
