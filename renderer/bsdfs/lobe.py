@@ -8,6 +8,9 @@ does not change. Dielectric and transparent lobes see both sides themselves.
 lobe_is_delta(kind, roughness) is True when the lobe has no density at all (eval always
 returns zero). Plastic with a smooth coat is a mixture: its sample reports `is_delta` per
 sample, so lobe_is_delta is False for it.
+
+lobe_eval_bumped and lobe_sample_bumped are the same lobes on a bumped surface, each on its
+own normal with its own bump factor (renderer.bsdfs.closure_normals).
 """
 
 from renderer.bsdfs import (
@@ -19,13 +22,24 @@ from renderer.bsdfs import (
     SMOOTH_ROUGHNESS,
     TRANSPARENT,
 )
+from renderer.bsdfs.closure_normals import (
+    diffuse_eval_bumped,
+    diffuse_sample_bumped,
+    specular_factor,
+)
 from renderer.bsdfs.conductor import conductor_sample
 from renderer.bsdfs.dielectric import dielectric_sample
 from renderer.bsdfs.diffuse import diffuse_eval, diffuse_sample
-from renderer.bsdfs.plastic import plastic_eval, plastic_sample
+from renderer.bsdfs.plastic import (
+    plastic_eval,
+    plastic_eval_bumped,
+    plastic_sample,
+    plastic_sample_bumped,
+)
 from renderer.bsdfs.rough_conductor import rough_conductor_eval, rough_conductor_sample
 from renderer.bsdfs.transparent import transparent_sample
 from renderer.kernels import inline_kernel, kernel
+from renderer.kernels.vecmath import neg, scale
 
 _ZERO3 = (0.0, 0.0, 0.0)
 
@@ -89,3 +103,39 @@ def lobe_sample(kind, color, roughness, ior, fresnel, tint, ms, wo, u1, u2, u3):
     if flip:
         wi = (wi[0], wi[1], -wi[2])
     return wi, w, pdf, delta
+
+
+@inline_kernel
+def lobe_eval_bumped(kind, color, roughness, ior, fresnel, tint, ms, bump, wo, wi):
+    """(f cos, pdf) of one lobe of a bumped surface: wo, wi in the specular normal's frame,
+    bump = (the program's normal, the mesh's) in it (closure_normals). Unlike lobe_eval, f
+    holds the lobe's own cosine, since the lobes' normals differ, and its bump factor."""
+    n_map, n_mesh = bump
+    if kind == DIFFUSE or kind == PLASTIC:
+        if wo[2] < 0.0:  # back face: turn all directions around; the normals then face the viewer
+            wo, wi = neg(wo), neg(wi)
+        if kind == DIFFUSE:
+            return diffuse_eval_bumped(color, n_map, n_mesh, wi)
+        return plastic_eval_bumped(color, roughness, ior, tint, ms, wo, wi, n_map, n_mesh)
+    f, pdf = lobe_eval(kind, color, roughness, ior, fresnel, tint, ms, wo, wi)
+    return scale(f, abs(wi[2]) * specular_factor(n_mesh, wi)), pdf
+
+
+@inline_kernel
+def lobe_sample_bumped(kind, color, roughness, ior, fresnel, tint, ms, bump, wo, u1, u2, u3):
+    """lobe_sample on a bumped surface, as lobe_eval_bumped."""
+    n_map, n_mesh = bump
+    if kind == DIFFUSE or kind == PLASTIC:
+        flip = wo[2] < 0.0
+        if flip:
+            wo = neg(wo)
+        if kind == DIFFUSE:
+            wi, w, pdf, delta = diffuse_sample_bumped(color, n_map, n_mesh, u1, u2)
+        else:
+            wi, w, pdf, delta = plastic_sample_bumped(color, roughness, ior, tint, ms, wo, n_map, n_mesh, u1,
+                                                      u2, u3)
+        return (neg(wi) if flip else wi), w, pdf, delta
+    wi, w, pdf, delta = lobe_sample(kind, color, roughness, ior, fresnel, tint, ms, wo, u1, u2, u3)
+    if kind == TRANSPARENT:
+        return wi, w, pdf, delta
+    return wi, scale(w, specular_factor(n_mesh, wi)), pdf, delta

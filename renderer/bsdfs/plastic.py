@@ -25,10 +25,15 @@ creates energy.
 Below SMOOTH_ROUGHNESS the layer is a smooth interface: its reflection is a delta lobe
 (weight F), sampled with `is_delta` True and absent from eval; the base stays diffuse.
 The layer's index is max(ior, 1/ior) (E_ss is looked up at most at index 4, its table's range).
+
+On a bumped surface (renderer.bsdfs.closure_normals) the base lies on the program's normal and
+the layer on its specular-corrected one, each part weighed by its own bump factor:
+plastic_eval_bumped and plastic_sample_bumped.
 """
 
 
 from renderer.bsdfs import SMOOTH_ROUGHNESS
+from renderer.bsdfs.closure_normals import diffuse_factor, specular_factor
 from renderer.bsdfs.coat_albedo import coat_albedo, coat_eta
 from renderer.bsdfs.fresnel import fresnel_dielectric
 from renderer.bsdfs.microfacet import (
@@ -42,7 +47,7 @@ from renderer.bsdfs.multiscatter import dielectric_fss, energy_factor, ggx_energ
 from renderer.bsdfs.spec_albedo import f0_from_eta, spec_albedo
 from renderer.bsdfs.warp import square_to_cosine_hemisphere
 from renderer.kernels import inline_kernel, kernel
-from renderer.kernels.vecmath import INV_PI, mul, normalize, scale
+from renderer.kernels.vecmath import INV_PI, add, dot, mul, normalize, onb, scale, to_world
 
 _ZERO3 = (0.0, 0.0, 0.0)
 
@@ -109,6 +114,17 @@ def _fresnel(f0, f0_real, eta, cos_oh, factor):
             (f0[2] + (1.0 - f0[2]) * s) * factor[2])
 
 
+@inline_kernel
+def _layer_reflection(f0, factor, eta, roughness, wo, wi):
+    """(f, pdf) of the rough layer's own reflection, F(wo.h) D G2 / (4 wo.z wi.z)."""
+    alpha = roughness * roughness
+    h = normalize((wo[0] + wi[0], wo[1] + wi[1], wo[2] + wi[2]))
+    cos_oh = wo[0] * h[0] + wo[1] * h[1] + wo[2] * h[2]
+    F = _fresnel(f0, f0_from_eta(eta), eta, cos_oh, factor)
+    return (scale(F, ggx_D(alpha, h) * ggx_G2(alpha, wo, wi) / (4.0 * wo[2] * wi[2])),
+            ggx_reflection_pdf(alpha, wo, wi))
+
+
 @kernel
 def plastic_eval(color, roughness, ior, tint, ms, wo, wi):
     if wo[2] <= 0.0 or wi[2] <= 0.0:
@@ -120,12 +136,8 @@ def plastic_eval(color, roughness, ior, tint, ms, wo, wi):
     spec = _ZERO3
     pdf = (1.0 - p_coat) * wi[2] * INV_PI
     if roughness >= SMOOTH_ROUGHNESS:
-        alpha = roughness * roughness
-        h = normalize((wo[0] + wi[0], wo[1] + wi[1], wo[2] + wi[2]))
-        cos_oh = wo[0] * h[0] + wo[1] * h[1] + wo[2] * h[2]
-        F = _fresnel(f0, f0_from_eta(eta), eta, cos_oh, factor)
-        spec = scale(F, ggx_D(alpha, h) * ggx_G2(alpha, wo, wi) / (4.0 * wo[2] * wi[2]))
-        pdf += p_coat * ggx_reflection_pdf(alpha, wo, wi)
+        spec, pdf_layer = _layer_reflection(f0, factor, eta, roughness, wo, wi)
+        pdf += p_coat * pdf_layer
     f = (color[0] * kd + spec[0], color[1] * kd + spec[1], color[2] * kd + spec[2])
     return f, pdf
 
@@ -156,3 +168,56 @@ def plastic_sample(color, roughness, ior, tint, ms, wo, u1, u2, u3):
         return wi, _ZERO3, 0.0, False
     s = wi[2] / pdf
     return wi, (f[0] * s, f[1] * s, f[2] * s), pdf, False
+
+
+# A bumped surface (renderer.bsdfs.closure_normals): the base, a diffuse closure, lies on the
+# program's normal nb and the layer, a specular one, on the shading frame's z. wo, wi and the
+# normals nb, n_mesh are given in that frame with the viewer above it (wo.z > 0).
+
+
+@kernel
+def plastic_eval_bumped(color, roughness, ior, tint, ms, wo, wi, nb, n_mesh):
+    """(f cos, pdf): the layer's f wi.z (times its side test) plus the base's color / pi
+    (1 - E(wo)) nb.wi (times its bump shadowing); the base's weight and the lobe choice depend
+    on wo through the layer, as in Cycles' closure_layering_weight. The mixture's pdf is
+    p_coat pdf_layer + (1 - p_coat) max(nb.wi, 0) / pi, each part's in its own frame."""
+    if wo[2] <= 0.0:
+        return _ZERO3, 0.0
+    eta = _layer_eta(ior)
+    f0, factor, base, e_o = _layer(roughness, eta, tint, ms, wo[2])
+    p_coat = _coat_probability(color, e_o)
+    cos_b = max(dot(nb, wi), 0.0)
+    f = scale(color, base * INV_PI * cos_b * diffuse_factor(n_mesh, nb, wi))
+    pdf = (1.0 - p_coat) * cos_b * INV_PI
+    if roughness >= SMOOTH_ROUGHNESS and wi[2] > 0.0:
+        spec, pdf_layer = _layer_reflection(f0, factor, eta, roughness, wo, wi)
+        f = add(f, scale(spec, wi[2] * specular_factor(n_mesh, wi)))
+        pdf += p_coat * pdf_layer
+    return f, pdf
+
+
+@kernel
+def plastic_sample_bumped(color, roughness, ior, tint, ms, wo, nb, n_mesh, u1, u2, u3):
+    """(wi, weight, pdf, is_delta) drawn as plastic_sample's, the base about nb; the weight is
+    plastic_eval_bumped's f cos / pdf. (Written apart from plastic_sample: sharing its code
+    moved LLVM's fused multiply-adds there, and unbumped images must not change.)"""
+    if wo[2] <= 0.0:
+        return (0.0, 0.0, 1.0), _ZERO3, 0.0, False
+    eta = _layer_eta(ior)
+    f0, factor, base, e_o = _layer(roughness, eta, tint, ms, wo[2])
+    p_coat = _coat_probability(color, e_o)
+    if u3 < p_coat:
+        if roughness < SMOOTH_ROUGHNESS:
+            wi = (-wo[0], -wo[1], wo[2])
+            F = _fresnel(f0, f0_from_eta(eta), eta, wo[2], factor)
+            return wi, scale(F, specular_factor(n_mesh, wi) / p_coat), p_coat, True
+        wi = reflect(wo, ggx_sample_visible_normal(roughness * roughness, wo, u1, u2))
+        if wi[2] <= 0.0:  # lost below the layer, where its pdf is 0 (the base's may not be)
+            return wi, _ZERO3, 0.0, False
+    else:
+        s, t = onb(nb)
+        wi = to_world(square_to_cosine_hemisphere(u1, u2), s, t, nb)
+    f, pdf = plastic_eval_bumped(color, roughness, ior, tint, ms, wo, wi, nb, n_mesh)
+    if pdf <= 0.0:
+        return wi, _ZERO3, 0.0, False
+    return wi, scale(f, 1.0 / pdf), pdf, False

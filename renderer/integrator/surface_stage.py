@@ -13,13 +13,16 @@ a single kernel holding both stages measured 36% slower on the surface Cornell b
 
 import math
 
+from ..bsdfs.closure_normals import specular_normal
 from ..bsdfs.material import (
     EVENT_ABSORB,
     EVENT_PASS_THROUGH,
     EVENT_SCATTER,
     bsdf_eval,
+    bsdf_eval_bumped,
     bsdf_has_lobes,
     bsdf_sample,
+    bsdf_sample_bumped,
 )
 from ..kernels import inline_kernel, kernel
 from ..kernels.rng import uniform
@@ -33,7 +36,6 @@ from ..lights.sample import (
     triangle_light_pdf,
 )
 from ..lights.table import LT_CDF
-from ..shading.normals import bump_shadowing
 from .aovs import (
     aov_after_medium,
     aov_background,
@@ -75,6 +77,7 @@ from .paths import (
 )
 
 MAX_CROSSINGS = 256  # interfaces a path may pass before it is ended (guards open meshes)
+_NO_BUMP = ((0.0, 0.0, 1.0), (0.0, 0.0, 1.0))  # `bump` of an unbumped surface (unused there)
 
 
 @kernel
@@ -88,7 +91,8 @@ def shade_surface(n, ps, prim, bu, bv, geo, mt, override, program_out, lt, env_l
     (renderer.shading.stage, only in scenes with shader programs; empty otherwise) is the
     row of mt to shade path i with instead of its triangle's material; program_out[i, 0:3]
     scales the radiance of the emitter it hit and program_out[i, 3:6], when not zero, is its
-    shading normal. Returns the number of shadow rays written in all."""
+    shading normal (then the surface is bumped: its lobes have their own normals,
+    renderer.bsdfs.closure_normals). Returns the number of shadow rays written in all."""
     max_bounces = cfg[CFG_MAX_BOUNCES]
     sampling = cfg[CFG_SAMPLING]
     transparent = cfg[CFG_FILM_TRANSPARENT] != 0
@@ -181,10 +185,12 @@ def shade_surface(n, ps, prim, bu, bv, geo, mt, override, program_out, lt, env_l
             continue
         sn = _shading_normal(geo, p, b0, b1, b2, ng)
         sn_mesh = sn
+        n_map = sn
         bumped = programmed and (program_out[i, 3] != 0.0 or program_out[i, 4] != 0.0 or
                                  program_out[i, 5] != 0.0)
-        if bumped:  # a program's normal (Normal Map into a BSDF's Normal)
-            sn = (float(program_out[i, 3]), float(program_out[i, 4]), float(program_out[i, 5]))
+        if bumped:  # a program's normal (Normal Map, Bump into a BSDF's Normal)
+            n_map = normalize((float(program_out[i, 3]), float(program_out[i, 4]), float(program_out[i, 5])))
+            sn = specular_normal(n_map, ng, d, front)  # the frame: the specular lobes' normal
         if aov_open:
             if depth > max_bounces:
                 aov_past_limit(L, pid)
@@ -199,6 +205,9 @@ def shade_surface(n, ps, prim, bu, bv, geo, mt, override, program_out, lt, env_l
 
         ts, tt = onb(sn)
         wo = to_local(neg(d), ts, tt, sn)
+        bump = _NO_BUMP
+        if bumped:
+            bump = (to_local(n_map, ts, tt, sn), to_local(sn_mesh, ts, tt, sn))
 
         # Dimensions: the light sample's, then the BSDF sample's, then a shadow ray's block
         # when one is traced, so that the first bounce's light and lobe choices both fall
@@ -209,13 +218,17 @@ def shade_surface(n, ps, prim, bu, bv, geo, mt, override, program_out, lt, env_l
         if nee:
             col = shadow_pass_column(L, pid, depth, False, light_aovs)
             s, traced = _surface_nee(lt, env, mt, m, front, x, ng, wo, ts, tt, sn, beta, sampling, pid, key,
-                                     dim, next_dim, stack, sh, s, col, sn_mesh, bumped)
+                                     dim, next_dim, stack, sh, s, col, bump, bumped)
             if traced:
                 next_dim += SHADOW_DIMS
 
         # BSDF sampling
-        wil, w, pdf, event = bsdf_sample(mt, m, front, wo, uniform(key, bsdf_dim), uniform(key, bsdf_dim + 1),
-                                         uniform(key, bsdf_dim + 2), uniform(key, bsdf_dim + 3))
+        u_sel, u1, u2, u3 = (uniform(key, bsdf_dim), uniform(key, bsdf_dim + 1), uniform(key, bsdf_dim + 2),
+                             uniform(key, bsdf_dim + 3))
+        if bumped:
+            wil, w, pdf, event = bsdf_sample_bumped(mt, m, front, bump, wo, u_sel, u1, u2, u3)
+        else:
+            wil, w, pdf, event = bsdf_sample(mt, m, front, wo, u_sel, u1, u2, u3)
         dim = next_dim
         if event == EVENT_ABSORB or max3(w) <= 0.0:
             ps.alive[i] = PATH_DEAD
@@ -226,8 +239,6 @@ def shade_surface(n, ps, prim, bu, bv, geo, mt, override, program_out, lt, env_l
             ps.dim[i] = dim
             continue
         wi = normalize(to_world(wil, ts, tt, sn))
-        if bumped:
-            beta = scale(beta, bump_shadowing(sn_mesh, sn, wi))
         # Crossing to the other side of the geometric surface enters or leaves its medium.
         if (dot(wi, ng) > 0.0) != front:
             _update_stack(ps, i, geo, p, front)
@@ -245,13 +256,13 @@ def shade_surface(n, ps, prim, bu, bv, geo, mt, override, program_out, lt, env_l
 
 @inline_kernel
 def _surface_nee(lt, env, mt, m, front, x, ng, wo, ts, tt, sn, beta, sampling, pid, key, dim, shadow_dim,
-                 stack, sh, s, col, sn_mesh, bumped):
+                 stack, sh, s, col, bump, bumped):
     """Next-event estimation at surface point x: pick a light and a point on it (dimensions
     dim .. dim + NEE_DIMS - 1), weigh the connection by the BSDF and MIS, and write its
     shadow ray at index s when it carries light (its tracking from shadow_dim on; and to
     light pass column col). Returns (next shadow index, whether a shadow ray was written).
-    bumped: a program set the shading normal sn (sn_mesh the mesh's own), whose shadowing
-    term weighs the connection."""
+    bumped: a program set the normal, and the lobes see their own normals (bump, in the
+    frame (ts, tt, sn); renderer.bsdfs.closure_normals)."""
     cdf = lt[LT_CDF]  # what pick_light searches: L + 1 entries
     light = pick_light(cdf, uniform(key, dim))
     lp = light_point(lt, light, uniform(key, dim + 1), uniform(key, dim + 2))
@@ -260,11 +271,14 @@ def _surface_nee(lt, env, mt, m, front, x, ng, wo, ts, tt, sn, beta, sampling, p
     p_light = pdf * light_pmf(lt, light)
     if p_light > 0.0 and max3(le) > 0.0:
         wil = to_local(wi, ts, tt, sn)
-        f, pdf_bsdf = bsdf_eval(mt, m, front, wo, wil)
+        if bumped:  # f holds each lobe's own cosine (and bump factor)
+            f, pdf_bsdf = bsdf_eval_bumped(mt, m, front, bump, wo, wil)
+            cos = 1.0
+        else:
+            f, pdf_bsdf = bsdf_eval(mt, m, front, wo, wil)
+            cos = abs(wil[2])
         w = light_sample_weight(p_light, pdf_bsdf, is_delta, sampling)
-        c = scale(mul(mul(beta, f), le), abs(wil[2]) * w / p_light)
-        if bumped:
-            c = scale(c, bump_shadowing(sn_mesh, sn, wi))
+        c = scale(mul(mul(beta, f), le), cos * w / p_light)
         if max3(c) > 0.0:
             xo = offset_origin(x, ng, wi)
             ws = wi

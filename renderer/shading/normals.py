@@ -73,19 +73,23 @@ def valid_specular_normal(ng, wi, n):
 
 
 @inline_kernel
+def bump_visible(ns, n, w):
+    """The first test of Cycles' bump_shadowing_term (closure/bsdf.h): False where direction w
+    lies on the wrong side of the mesh's own smooth normal ns for a closure of normal n
+    (light through the geometry). Unchanged when ns and n both turn around."""
+    return dot(ns, w) * dot(ns, n) * dot(n, w) >= 0.0
+
+
+@inline_kernel
 def bump_shadowing(ns, n, w):
-    """Cycles' bump_shadowing_term (closure/bsdf.h) for a direction w leaving a surface
-    whose shading normal n a program set, ns the mesh's own (smooth) normal: 0 where w is on
-    the wrong side of ns for n (light through the geometry), else the GGX shadowing that
-    softens the terminator of the tilted normal. Cycles softens diffuse closures only and
-    rejects sampled directions of glossy ones only in evaluation; Haze's lobes share one
-    normal, so both apply to every lobe (for a 35-degree tilt the softening is about 1%)."""
-    cos_ns_i = dot(ns, w)
-    cos_ns_n = dot(ns, n)
-    if cos_ns_i * cos_ns_n * dot(n, w) < 0.0:
+    """Cycles' bump_shadowing_term (closure/bsdf.h) for a diffuse closure of normal n (a
+    program's) and a direction w leaving the surface, ns the mesh's own (smooth) normal: 0
+    where bump_visible fails, else the GGX shadowing that softens the terminator of the tilted
+    normal. Which closures get which part: renderer.bsdfs.closure_normals."""
+    if not bump_visible(ns, n, w):
         return 0.0
-    cos_i = abs(cos_ns_i)
-    cos_d = abs(cos_ns_n)
+    cos_i = abs(dot(ns, w))
+    cos_d = abs(dot(ns, n))
     if cos_d >= 1.0 or cos_i >= 1.0:
         return 1.0
     if cos_i < 1e-6:

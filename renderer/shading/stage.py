@@ -29,7 +29,6 @@ from renderer.kernels import inline_kernel, kernel
 from renderer.kernels.vecmath import add, dot, madd, neg, normalize, scale
 
 from .interpreter import run_program
-from .normals import valid_specular_normal
 from .program import BIND, BIND_SCALE
 from .table import P_BIND, P_NBIND, P_NCODE
 
@@ -114,9 +113,8 @@ def apply_program(geo, st, mt, regs, p, m, b1, b2, d, row, first, field_offsets)
     write the material with the program's results into scratch material `row` (its lobes
     from `first`), and return the emission factor (program.py: the emission binding's
     registers, (1, 1, 1) without one) and the shading normal on the front side of the
-    geometric normal ((0, 0, 0) without a normal binding). A bound normal is raised toward
-    the geometric one where its mirror reflection would go below the surface, as Cycles
-    does for its glossy closures (normals.valid_specular_normal)."""
+    geometric normal ((0, 0, 0) without a normal binding). The normal is the program's as it
+    is; the surface stage gives each lobe its own from it (renderer.bsdfs.closure_normals)."""
     mats, lobes = mt
     progs, binds = st[0], st[4]
     b0 = 1.0 - b1 - b2
@@ -145,7 +143,7 @@ def apply_program(geo, st, mt, regs, p, m, b1, b2, d, row, first, field_offsets)
             e = (_finite(float(regs[r]), 0.0, 3.0e38), _finite(float(regs[r + 1]), 0.0, 3.0e38),
                  _finite(float(regs[r + 2]), 0.0, 3.0e38))
         elif binds[k, B_FIELD] == F_NORMAL:
-            bound = _bound_normal((float(regs[r]), float(regs[r + 1]), float(regs[r + 2])), ng, wi, back)
+            bound = _bound_normal((float(regs[r]), float(regs[r + 1]), float(regs[r + 2])), back)
         else:
             _bind(lobes, first + binds[k, B_LOBE], binds[k, B_FIELD], binds[k, B_WIDTH], regs,
                   binds[k, B_REG], binds[k, B_MODE], field_offsets)
@@ -153,13 +151,12 @@ def apply_program(geo, st, mt, regs, p, m, b1, b2, d, row, first, field_offsets)
 
 
 @inline_kernel
-def _bound_normal(v, ng, wi, back):
-    """A program's normal (facing the viewer's side, as Cycles' N) made valid for specular
-    reflection and turned to the front side of ng, where the surface stage keeps normals;
-    (0, 0, 0) when it is not a usable direction."""
+def _bound_normal(v, back):
+    """A program's normal (facing the viewer's side, as Cycles' N) made unit and turned to the
+    front side of the geometric normal, where the surface stage keeps normals; (0, 0, 0) when
+    it is not a usable direction."""
     length = math.sqrt(dot(v, v))
     if not length > 0.0 or not math.isfinite(length):
         return (0.0, 0.0, 0.0)
-    side_ng = neg(ng) if back else ng
-    nv = valid_specular_normal(side_ng, wi, scale(v, 1.0 / length))
-    return neg(nv) if back else nv
+    n = scale(v, 1.0 / length)
+    return neg(n) if back else n
