@@ -18,6 +18,7 @@ from ..lights.table import kernel_arrays
 from ..media.layout import dda_scratch
 from ..media.stack_phase import phase_eval, sample_phase
 from ..scene import IntegratorSettings
+from ..shading.interpreter import program_entry
 from ..shading.shadows import emitter_programs, probe_rays, shadow_programs
 from ..shading.stage import FIELD_OFFSETS, scratch_table, shade_programs
 from . import stages as K
@@ -116,6 +117,7 @@ class Tracer:
         self.override = self.shadow_override = np.zeros(0, np.int32)
         self.program_out = np.zeros((0, 6), np.float32)
         self.regs = np.zeros(1, np.float32)
+        self.entry = 0  # the interpreter's address (interpreter.program_entry), in scenes with programs
         self.max_lobes = 0
         if cs.shading is not None:
             self.max_lobes = cs.shading.max_lobes
@@ -123,6 +125,7 @@ class Tracer:
             self.override = np.full(self.batch, -1, np.int32)
             self.program_out = np.zeros((self.batch, 6), np.float32)
             self.regs = np.zeros(cs.shading.max_registers, np.float32)
+            self.entry = program_entry(cs.shading.arrays, self.regs)
             shadows = self.sh.o.shape[0]
             self.shadow_mt = scratch_table(cs.materials, shadows, self.max_lobes)
             self.shadow_override = np.full(shadows, -1, np.int32)
@@ -147,13 +150,15 @@ class Tracer:
         if cs.shading is not None:
             st, lobes = cs.shading.arrays, self.max_lobes
             calls.append((shade_programs, (1, ps, prim, bu, bv, cs.geometry, st, self.mt, self.regs,
-                                           self.override, self.program_out, lobes, FIELD_OFFSETS)))
+                                           self.entry, self.override, self.program_out, lobes,
+                                           FIELD_OFFSETS)))
             if cs.shading.emission:
                 calls.append((emitter_programs, (1, sh, prim, bu, bv, cs.geometry, st, self.shadow_mt,
-                                                 self.regs, 1, lobes, FIELD_OFFSETS)))
+                                                 self.regs, self.entry, 1, lobes, FIELD_OFFSETS)))
             if cs.needs_shadow_walk:
                 calls.append((shadow_programs, (1, sh, prim, bu, bv, cs.geometry, st, self.shadow_mt,
-                                                self.regs, self.shadow_override, lobes, FIELD_OFFSETS)))
+                                                self.regs, self.entry, self.shadow_override, lobes,
+                                                FIELD_OFFSETS)))
         if cs.has_media:
             calls.append((K.shade_media, (1, ps, prim, lt, cs.environment, self.md, cfg, L, sh, self.nb,
                                           self.grid_md)))
@@ -225,7 +230,7 @@ class Tracer:
                                       self.nb, self.grid_md)
             if cs.shading is not None:
                 shade_programs(live, ps, prim, bu, bv, cs.geometry, cs.shading.arrays, self.mt, self.regs,
-                               self.override, self.program_out, self.max_lobes, FIELD_OFFSETS)
+                               self.entry, self.override, self.program_out, self.max_lobes, FIELD_OFFSETS)
             count = K.shade_surface(live, ps, prim, bu, bv, cs.geometry, self.mt, self.override,
                                     self.program_out, self.lt,
                                     cs.lights.env_light, cs.lights.sun_rows, cs.environment, self.cfg, self.L,
@@ -254,7 +259,8 @@ class Tracer:
             # Textured emitters: their radiance at each ray's light point (shading.shadows).
             prim, bu, bv = self.isect.intersect(*probe_rays(sh, count))
             emitter_programs(count, sh, prim, bu, bv, cs.geometry, cs.shading.arrays, self.shadow_mt,
-                             self.regs, self.shadow_override.shape[0], self.max_lobes, FIELD_OFFSETS)
+                             self.regs, self.entry, self.shadow_override.shape[0], self.max_lobes,
+                             FIELD_OFFSETS)
         if not self.cs.needs_shadow_walk:
             if self.cs.has_media:
                 K.shadow_media(count, sh, self.md, self.cfg, self.grid_md)
@@ -268,7 +274,7 @@ class Tracer:
             prim, bu, bv = self.isect.intersect(sh.o[:count], sh.d[:count], thit)
             if cs.shading is not None:
                 shadow_programs(count, sh, prim, bu, bv, cs.geometry, cs.shading.arrays, self.shadow_mt,
-                                self.regs, self.shadow_override, self.max_lobes, FIELD_OFFSETS)
+                                self.regs, self.entry, self.shadow_override, self.max_lobes, FIELD_OFFSETS)
             K.walk_shadows(count, sh, prim, thit, remaining, cs.geometry, self.shadow_mt,
                            self.shadow_override, self.md, self.cfg, self.L, self.grid_md)
             count = K.compact_shadows(count, sh, remaining)

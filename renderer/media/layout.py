@@ -61,6 +61,7 @@ import numpy as np
 
 from renderer.layout import Layout
 from renderer.scene import MAX_STACK, MEDIUM_TYPES
+from renderer.shading.interpreter import program_entry
 from renderer.shading.table import PROG
 
 MEDIUM_HOMOGENEOUS = MEDIUM_TYPES["homogeneous"]
@@ -204,24 +205,21 @@ def dda_scratch() -> np.ndarray:
 
 class DensityPrograms(NamedTuple):
     """ProceduralMediaTable.programs: MediaData.programs (the shading tuple and the density
-    register of each program) with the scratch that shading.evaluate's entry runs one point
-    in, the tracer's own (program_scratch): registers, and one row of triangle -1, unused
-    barycentrics and normal, the point (float32, as Cycles') and the density out."""
+    register of each program) with what running them needs in one process
+    (program_scratch): a register file of its own and the address of the interpreter
+    compiled for these tables (renderer.shading.interpreter.program_entry), which the
+    trackers call (renderer.kernels.native_call). The address is this process's: a
+    DensityPrograms is made where it is used, never pickled."""
 
     tables: tuple
     density: np.ndarray  # (K,) int64
     regs: np.ndarray  # (R,) float32
-    tri: np.ndarray  # (1,) int32
-    bary: np.ndarray  # (1, 3) float32
-    x: np.ndarray  # (1, 3) float32
-    n: np.ndarray  # (1, 3) float32
-    out: np.ndarray  # (1, 1) float32
+    entry: int  # run_program's address in this process
 
 
 def program_scratch(programs: tuple) -> DensityPrograms:
-    """MediaData.programs with a scratch of its own (see DensityPrograms)."""
+    """MediaData.programs with a register file and the interpreter's address (see DensityPrograms)."""
     tables, density = programs
     nregs = int(tables[0][:, PROG.offset("nregs")].max())
-    return DensityPrograms(tables, density, np.zeros(max(1, nregs), np.float32), np.full(1, -1, np.int32),
-                           np.zeros((1, 3), np.float32), np.zeros((1, 3), np.float32),
-                           np.array([[0.0, 0.0, 1.0]], np.float32), np.zeros((1, 1), np.float32))
+    regs = np.zeros(max(1, nregs), np.float32)
+    return DensityPrograms(tables, density, regs, program_entry(tables, regs))

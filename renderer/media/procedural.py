@@ -24,8 +24,9 @@ scratch and gives a ProceduralMediaTable (programs: a DensityPrograms), a type o
 scenes without procedural media keep the plain MediaTable, for which program_density
 compiles to a constant (one trivial extra compile), so their kernels are the ones they had
 before procedural media, with the same types; only a scene
-with a procedural medium compiles its trackers for the new type. The program itself runs
-in shading.evaluate's entry, compiled once for surface programs and media alike.
+with a procedural medium compiles its trackers for the new type. The trackers call the
+interpreter through its address (renderer.kernels.native_call), compiled once for surface
+programs and media alike.
 """
 
 from __future__ import annotations
@@ -38,6 +39,7 @@ from numba.extending import overload
 
 from renderer.errors import SceneError
 from renderer.kernels import JIT_OPTIONS, inline_kernel
+from renderer.kernels.native_call import call_native
 from renderer.media.layout import (
     CELL_DENSITY_BOUND,
     I_MAJ_DIMS,
@@ -135,18 +137,17 @@ def density_bounds(med: Medium, unit_to_world: np.ndarray, path: str, cells: int
 @inline_kernel
 def _run(programs, k, x):
     """Program k's density at world point x, clamped at 0 as Principled Volume clamps it (NaN
-    too). It runs through shading.evaluate's entry, a called function with the surface
-    tables' types: the interpreter is compiled once for both (surface programs and this),
-    and not inlined into the trackers at every density lookup (that made delta_track's
-    machine code 4x larger and its cold compile many times slower)."""
-    xs = programs.x
-    xs[0, 0] = x[0]
-    xs[0, 1] = x[1]
-    xs[0, 2] = x[2]
-    one = np.int64(1)
-    evaluate_points(programs.tables, k, programs.tri, programs.bary, xs, programs.n, programs.regs,
-                    programs.density[k], one, programs.out)
-    rho = float(programs.out[0, 0])
+    too). The point is rounded to float32 first, as Cycles' shading points are (and as
+    shading.evaluate gives them). The interpreter is called through its address
+    (renderer.kernels.native_call): linked into the trackers, it was optimised again inside
+    each of them (over 15 CPU minutes for a procedural scene's first render), and inlined,
+    it made delta_track's machine code 4x larger."""
+    pos = (np.float64(np.float32(x[0])), np.float64(np.float32(x[1])), np.float64(np.float32(x[2])))
+    up = (0.0, 0.0, 1.0)
+    # As evaluate_points runs it: no triangle, the normal and view +z, front face.
+    call_native(programs.entry, (programs.tables, k, programs.regs, np.int64(-1), 0.0, 0.0, 0.0, pos, up, up,
+                                 False))
+    rho = float(programs.regs[programs.density[k]])
     return rho if rho > 0.0 else 0.0
 
 
@@ -179,11 +180,12 @@ def _program_density(mt, m, u, x):
 
 def evaluate_density(programs: DensityPrograms, k: int, points: np.ndarray) -> np.ndarray:
     """(N,) density of program k at world points (N, 3), ignoring the box, as the trackers
-    get it (_run: float32 points, clamped at 0), through the same compiled entry (tests, tools)."""
+    get it (_run: float32 points, +z normal, clamped at 0), through shading.evaluate's
+    entry (tests, tools)."""
     n = len(points)
     out = np.zeros((n, 1), np.float32)
     x = np.ascontiguousarray(points, np.float32)
-    normals = np.repeat(programs.n, n, axis=0)
+    normals = np.tile(np.array([[0.0, 0.0, 1.0]], np.float32), (n, 1))
     evaluate_points(programs.tables, np.int64(k), np.full(n, -1, np.int32), np.zeros((n, 3), np.float32), x,
                     normals, programs.regs, np.int64(programs.density[k]), np.int64(1), out)
     rho = out[:, 0].astype(np.float64)

@@ -11,7 +11,10 @@ corner attributes are interpolated with the barycentrics Embree returns
 
 import math
 
+import numpy as np
+
 from renderer.kernels import helper_kernel, inline_kernel
+from renderer.kernels.native_call import native_address
 
 from .bump import bump_normal, bump_point
 from .color import fresnel, hsl_to_rgb, hsv_to_rgb, hue_saturation_value, layer_weight, rgb_to_hsl, rgb_to_hsv
@@ -203,6 +206,17 @@ def run_program(st, m, regs, p, b0, b1, b2, x, n, wi, back):  # noqa: C901 - the
         elif op == MAP_RANGE:
             regs[dst] = _map_range(float(regs[a]), float(regs[b]), float(regs[b + 1]), float(regs[b + 2]),
                                    float(regs[b + 3]), float(regs[b + 4]), ins[I_P0], ins[I_P1] != 0)
+
+
+def program_entry(st: tuple, regs: np.ndarray) -> int:
+    """This process's address of run_program compiled for the shading tuple `st` and the
+    register file `regs` (renderer.kernels.native_call): the kernels that run programs
+    (shading.stage, shading.shadows, media.procedural) call it through this address with
+    call_native, so the interpreter is compiled once rather than again inside each of them.
+    The arguments after regs have the types those callers pass: int64 m and p, float64
+    barycentrics, 3-tuples of float64 for x, n and wi, bool back."""
+    v = (0.0, 0.0, 0.0)
+    return native_address(run_program, st, np.int64(0), regs, np.int64(0), 0.0, 0.0, 0.0, v, v, v, False)
 
 
 @inline_kernel

@@ -35,7 +35,7 @@ def probe_rays(sh, count: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 
 @kernel
-def emitter_programs(count, sh, prim, bu, bv, geo, st, mt, regs, n_scratch, max_lobes, field_offsets):
+def emitter_programs(count, sh, prim, bu, bv, geo, st, mt, regs, entry, n_scratch, max_lobes, field_offsets):
     """Scale the contribution of shadow rays 0..count-1 whose probe (prim, bu, bv) met an
     emitting triangle with a program by the emission factor the program gives there.
     mt: a table with scratch rows (stage.scratch_table), n_scratch of them."""
@@ -50,15 +50,15 @@ def emitter_programs(count, sh, prim, bu, bv, geo, st, mt, regs, n_scratch, max_
         m = geo.material[p]
         if progs[m, P_NCODE] < 0:
             continue
-        e, _ = apply_program(geo, st, mt, regs, p, m, float(bu[s]), float(bv[s]), load3(sh.d, s), row, first,
-                          field_offsets)
+        e, _ = apply_program(geo, st, mt, regs, entry, p, m, float(bu[s]), float(bv[s]), load3(sh.d, s), row,
+                             first, field_offsets)
         sh.contrib[s, 0] *= e[0]
         sh.contrib[s, 1] *= e[1]
         sh.contrib[s, 2] *= e[2]
 
 
 @kernel
-def shadow_programs(count, sh, prim, bu, bv, geo, st, mt, regs, override, max_lobes, field_offsets):
+def shadow_programs(count, sh, prim, bu, bv, geo, st, mt, regs, entry, override, max_lobes, field_offsets):
     """override[s] = the scratch material of shadow ray s's hit (prim, bu, bv) when its
     material has a program, -1 otherwise (walk_shadows then reads the scene's material)."""
     mats, lobes = mt
@@ -73,6 +73,6 @@ def shadow_programs(count, sh, prim, bu, bv, geo, st, mt, regs, override, max_lo
         m = geo.material[p]
         if progs[m, P_NCODE] < 0:
             continue
-        apply_program(geo, st, mt, regs, p, m, float(bu[s]), float(bv[s]), load3(sh.d, s), n_mats + s,
+        apply_program(geo, st, mt, regs, entry, p, m, float(bu[s]), float(bv[s]), load3(sh.d, s), n_mats + s,
                       n_lobes + s * max_lobes, field_offsets)
         override[s] = n_mats + s

@@ -26,9 +26,9 @@ import numpy as np
 from renderer.bsdfs.layout import LOBE, M_COUNT, M_FIRST, MATERIAL
 from renderer.integrator.paths import PATH_ACTIVE, load3
 from renderer.kernels import inline_kernel, kernel
+from renderer.kernels.native_call import call_native
 from renderer.kernels.vecmath import add, dot, madd, neg, normalize, scale
 
-from .interpreter import run_program
 from .program import BIND, BIND_SCALE
 from .table import P_BIND, P_NBIND, P_NCODE
 
@@ -77,7 +77,7 @@ def _shading_normal(geo, p, b0, b1, b2, ng):
 
 
 @kernel
-def shade_programs(n, ps, prim, bu, bv, geo, st, mt, regs, override, out, max_lobes, field_offsets):
+def shade_programs(n, ps, prim, bu, bv, geo, st, mt, regs, entry, override, out, max_lobes, field_offsets):
     """Run the programs of paths 0..n-1 that are PATH_ACTIVE and hit a material with one;
     override[i] = their scratch material, -1 for the others; out[i] (n, 6) the factor on
     the light table's radiance of the emitter hit (1 unless the program drives emission)
@@ -94,11 +94,16 @@ def shade_programs(n, ps, prim, bu, bv, geo, st, mt, regs, override, out, max_lo
         m = geo.material[p]
         if progs[m, P_NCODE] < 0:
             continue
-        e, sn = apply_program(geo, st, mt, regs, p, m, float(bu[i]), float(bv[i]), load3(ps.d, i), n_mats + i,
-                              n_lobes + i * max_lobes, field_offsets)
+        e, sn = apply_program(geo, st, mt, regs, entry, p, m, float(bu[i]), float(bv[i]), load3(ps.d, i),
+                              n_mats + i, n_lobes + i * max_lobes, field_offsets)
         out[i, 0], out[i, 1], out[i, 2] = e[0], e[1], e[2]
         out[i, 3], out[i, 4], out[i, 5] = sn[0], sn[1], sn[2]
         override[i] = n_mats + i
+
+
+@inline_kernel
+def _f64(v):
+    return (np.float64(v[0]), np.float64(v[1]), np.float64(v[2]))
 
 
 @inline_kernel
@@ -108,7 +113,7 @@ def hit_point(geo, p, b1, b2):
 
 
 @inline_kernel
-def apply_program(geo, st, mt, regs, p, m, b1, b2, d, row, first, field_offsets):
+def apply_program(geo, st, mt, regs, entry, p, m, b1, b2, d, row, first, field_offsets):
     """Run material m's program where direction d meets triangle p at barycentrics (b1, b2),
     write the material with the program's results into scratch material `row` (its lobes
     from `first`), and return the emission factor (program.py: the emission binding's
@@ -124,9 +129,11 @@ def apply_program(geo, st, mt, regs, p, m, b1, b2, d, row, first, field_offsets)
     sn = _shading_normal(geo, p, b0, b1, b2, ng)
     # Cycles' sd->N faces the side the ray came from.
     wi = neg(d)
-    # One signature for every caller (evaluate.py too): the interpreter compiles once.
     side_n = neg(sn) if back else sn
-    run_program(st, np.int64(m), regs, np.int64(p), float(b0), float(b1), float(b2), x, side_n, wi, back)
+    # The interpreter through its address (interpreter.program_entry), with the types it was
+    # compiled for: float() would keep a float32 in numba, hence np.float64.
+    call_native(entry, (st, np.int64(m), regs, np.int64(p), np.float64(b0), np.float64(b1), np.float64(b2),
+                        _f64(x), _f64(side_n), _f64(wi), back))
     start = mats[m, M_FIRST]
     count = mats[m, M_COUNT]
     for j in range(count):
