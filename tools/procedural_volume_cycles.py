@@ -9,10 +9,8 @@ add-on of this checkout) in one Blender process, then compared as the suite comp
 renders (tests/bpy_helpers.compare_images / assert_agree): image means per channel with
 their noise sigma, block z-scores, chi-square. Prints the figures and the verdict per scene.
 
-Not in the suite: Haze's first render of a scene with a procedural medium compiles its
-trackers for the procedural table type (renderer.media.procedural), minutes of CPU on a
-cold kernel cache; the suite tests the procedural tracking at the kernel level instead
-(tests/test_procedural_media.py).
+The suite runs the same comparison at these settings (test_addon_procedural_volume's slow
+tests); this tool prints the figures and takes other run counts, sample counts and sizes.
 """
 
 from __future__ import annotations
