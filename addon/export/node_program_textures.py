@@ -12,6 +12,7 @@ from collections.abc import Callable
 
 from renderer.shading.fractal import TYPES as NOISE_TYPES
 from renderer.shading.patterns import BANDS_DIRECTIONS, RINGS_DIRECTIONS, WAVE_PROFILES, WAVE_TYPES
+from renderer.shading.program import NOISE_NO_COLOR, NOISE_NORMALIZE
 from renderer.shading.voronoi_cells import FEATURES, METRICS
 
 from .program_builder import Reg
@@ -50,8 +51,10 @@ def noise(graph, node, output, scope) -> Reg | None:
     v = texture_vector(graph, node, scope) if dim > 1 else p.const((0.0, 0.0, 0.0))
     params = block(graph, node, scope, ("W", "Scale", "Detail", "Roughness", "Lacunarity", "Offset", "Gain",
                                         "Distortion"))
-    out = p.emit("noise_nd", 4, v, params, i0=dim, i1=NOISE_TYPES.index(node.noise_type),
-                 i2=int(node.normalize))
+    # The colour costs two more fractals: only for a linked Color output, as Cycles.
+    color = output.identifier != "Fac" or node.outputs["Color"].is_linked
+    flags = (NOISE_NORMALIZE if node.normalize else 0) | (0 if color else NOISE_NO_COLOR)
+    out = p.emit("noise_nd", 4, v, params, i0=dim, i1=NOISE_TYPES.index(node.noise_type), i2=flags)
     return Reg(out.index, 1) if output.identifier == "Fac" else Reg(out.index + 1, 3)
 
 

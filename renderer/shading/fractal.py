@@ -306,10 +306,12 @@ def _distorted(dim, axis, x, y, z, w, distortion):
 
 @kernel
 def noise_texture(dim, kind, x, y, z, w, detail, roughness, lacunarity, offset, gain, distortion,
-                  normalize):
+                  normalize, color):
     """(value, colour) of the Noise Texture at the scaled point (svm_node_tex_noise): the
     distortion moves the point by noise at seeded offsets; the colour's green and blue are
-    the same fractal at two more offsets (seeds dim and dim + 1)."""
+    the same fractal at two more offsets (seeds dim and dim + 1), computed only when `color`
+    (as Cycles, only for a linked Color output: they are two thirds of the work); else the
+    colour is (value, 0, 0)."""
     detail = min(max(detail, 0.0), 15.0)
     roughness = max(roughness, 0.0)
     x, y, z, w = _scaled(x, y, z, w, 1.0)
@@ -329,6 +331,8 @@ def noise_texture(dim, kind, x, y, z, w, detail, roughness, lacunarity, offset, 
                 dw = moved
         x, y, z, w = dx, dy, dz, dw
     value = fractal(dim, kind, x, y, z, w, detail, roughness, lacunarity, offset, gain, normalize)
+    if not color:
+        return value, (value, 0.0, 0.0)
     gx, gy, gz, gw = _seeded(dim, dim, x, y, z, w)
     g = fractal(dim, kind, gx, gy, gz, gw, detail, roughness, lacunarity, offset, gain, normalize)
     bx, by, bz, bw = _seeded(dim, dim + 1, x, y, z, w)

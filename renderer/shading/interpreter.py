@@ -23,7 +23,21 @@ from .image import image_lookup
 from .math_ops import math_op, mix_color, vector_op
 from .normals import normal_map
 from .patterns import brick, magic, wave
-from .program import I_A, I_B, I_C, I_D, I_DST, I_E, I_OP, I_P0, I_P1, I_P2, OP
+from .program import (
+    I_A,
+    I_B,
+    I_C,
+    I_D,
+    I_DST,
+    I_E,
+    I_OP,
+    I_P0,
+    I_P1,
+    I_P2,
+    NOISE_NO_COLOR,
+    NOISE_NORMALIZE,
+    OP,
+)
 from .spectrum import spectrum_node
 from .table import P_CODE, P_INIT, P_NCODE, P_NREGS
 from .textures import checker, curves, gradient, mapping, ramp_lookup
@@ -173,7 +187,7 @@ def run_program(st, m, regs, p, b0, b1, b2, x, n, wi, back):  # noqa: C901 - the
             _put3(regs, dst, normal_map(_v(regs, a), float(regs[b]), _v(regs, c), float(regs[ins[I_D]]),
                                         ins[I_P0], n, back))
         elif op == NOISE_ND:
-            _noise_nd(regs, dst, _v(regs, a), b, ins[I_P0], ins[I_P1], ins[I_P2] != 0)
+            _noise_nd(regs, dst, _v(regs, a), b, ins[I_P0], ins[I_P1], ins[I_P2])
         elif op == WHITE_NOISE:
             q = _v(regs, a)
             value, col = white_noise(ins[I_P0], q[0], q[1], q[2], float(regs[b]))
@@ -220,9 +234,10 @@ def program_entry(st: tuple, regs: np.ndarray) -> int:
 
 
 @inline_kernel
-def _noise_nd(regs, dst, q, b, dim, kind, normalize):
+def _noise_nd(regs, dst, q, b, dim, kind, flags):
     """Noise Texture of any dimension and type: (q, W) scaled by regs[b + 1], as
-    svm_node_tex_noise; 1D noise reads W alone."""
+    svm_node_tex_noise; 1D noise reads W alone. flags: program.NOISE_NORMALIZE,
+    program.NOISE_NO_COLOR."""
     s = float(regs[b + 1])
     w = float(regs[b]) * s
     x, y, z = q[0] * s, q[1] * s, q[2] * s
@@ -234,7 +249,8 @@ def _noise_nd(regs, dst, q, b, dim, kind, normalize):
         w = 0.0
     value, col = noise_texture(dim, kind, x, y, z, w, float(regs[b + 2]), float(regs[b + 3]),
                                float(regs[b + 4]), float(regs[b + 5]), float(regs[b + 6]),
-                               float(regs[b + 7]), normalize)
+                               float(regs[b + 7]), (flags & NOISE_NORMALIZE) != 0,
+                               (flags & NOISE_NO_COLOR) == 0)
     regs[dst] = value
     _put3(regs, dst + 1, col)
 

@@ -48,7 +48,21 @@ from .interval_arith import (
 )
 from .names import MATH_OPS, RAMP_SIZE, VECTOR_OPS
 from .noise_intervals import noise_interval
-from .program import I_A, I_B, I_C, I_D, I_DST, I_OP, I_P0, I_P1, I_P2, OPCODES, ShaderProgram
+from .program import (
+    I_A,
+    I_B,
+    I_C,
+    I_D,
+    I_DST,
+    I_OP,
+    I_P0,
+    I_P1,
+    I_P2,
+    NOISE_NO_COLOR,
+    NOISE_NORMALIZE,
+    OPCODES,
+    ShaderProgram,
+)
 
 REL_PAD = 1e-6
 
@@ -336,9 +350,12 @@ def run_intervals(program: ShaderProgram, boxes_lo: np.ndarray, boxes_hi: np.nda
             iv.put(dst, *const_range(iv.get(a), 0.0, 1.0))
         elif name == "noise_nd":  # b..b+7: W, scale, detail, roughness, lacunarity, offset, gain, ...
             params = [iv.get(b + k) for k in (2, 3, 5, 6)]
-            value = noise_interval(p0, p1, *params, p2 != 0)
+            value = noise_interval(p0, p1, *params, (p2 & NOISE_NORMALIZE) != 0)
             for k in range(4):  # the value, and the colour (the same fractal at seeded points)
                 iv.put(dst + k, *value)  # (noise_interval pads its own rounding)
+            if p2 & NOISE_NO_COLOR:  # the colour's green and blue are left 0
+                for k in (2, 3):
+                    iv.put(dst + k, np.minimum(value[0], 0.0), np.maximum(value[1], 0.0))
         else:  # attribute, normal, image, curve, gamma, hsv, fresnel, ...: no rule
             width = 1 if name in ("fresnel", "layer_weight") else 4 if name == "image" else 3
             for k in range(width):

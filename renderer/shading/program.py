@@ -65,7 +65,7 @@ OPCODES = (
                    # i0 space (names.NORMAL_MAP_SPACES)
     "noise_nd",    # dst factor, dst+1..3 colour: Noise Texture of vector a; b..b+7 = W, scale, detail,
                    # roughness, lacunarity, offset, gain, distortion; i0 dimensions (1-4),
-                   # i1 type (fractal.TYPES), i2 normalize
+                   # i1 type (fractal.TYPES), i2 flags: NOISE_NORMALIZE, NOISE_NO_COLOR
     "white_noise",  # dst value, dst+1..3 colour: White Noise of vector a and W b; i0 dimensions (1-4)
     "voronoi",     # dst distance, dst+1..3 colour, dst+4..6 position, dst+7 W, dst+8 radius: Voronoi of
                    # vector a; b..b+7 = W, scale, detail, roughness, lacunarity, smoothness, exponent,
@@ -84,6 +84,10 @@ OPCODES = (
                    # (i0 0, linear Rec.709) or Wavelength a nm (i0 1, CIE XYZ)
 )
 OP = {name: code for code, name in enumerate(OPCODES)}
+# noise_nd's i2 bits. NOISE_NO_COLOR: the Color output is unused (not linked), so its two
+# extra fractals are skipped and dst+2, dst+3 hold 0 (Cycles computes the colour only for a
+# linked output too). Programs without the bit compute it.
+NOISE_NORMALIZE, NOISE_NO_COLOR = 1, 2
 
 # Lobe fields a binding may drive, and how.
 BIND_FIELDS = ("weight", "color", "roughness", "ior", "tint", "emission", "normal")
