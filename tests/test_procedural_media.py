@@ -92,6 +92,24 @@ def test_every_noise_dimension_and_type_renders_within_its_majorants(dim, kind):
     assert count == 0, f"{count} densities above their cell majorant (worst excess {worst:g})"
 
 
+def test_unclamped_map_range_with_copied_parameters_is_bounded():
+    """The exporter copies a node's inputs into a parameter block (program_builder.block):
+    a copy is exact, so Map Range's copied constants stay constants for the interval rules,
+    and an unclamped Map Range (its Clamp off) of the noise gets a finite bound instead of
+    refusing the medium (copies used to pad each value as if rounded, and a padded From Min
+    made the map unbounded)."""
+    program, reg = cloud_program()
+    code = np.array(program.code).reshape(-1, INSTR.size).copy()
+    code[2, INSTR.offset("i1")] = 0  # Clamp off
+    code[2, INSTR.offset("b")] = 24  # the block read from registers 24..28, copies of 12..16
+    copies = [_row("copy", 24 + k, a=12 + k, i0=1) for k in range(5)]
+    regs = np.concatenate([program.registers, np.zeros(5, np.float32)])
+    unclamped = ShaderProgram(np.vstack([copies, code]), regs, program.bindings, program.data)
+    mt = compile_media([procedural(unclamped, reg)])
+    count, worst = bound_violations(mt, 0, 100_000, seed=3)
+    assert count == 0, f"{count} densities above their cell majorant (worst excess {worst:g})"
+
+
 def test_noise_with_an_unbounded_parameter_is_refused_naming_the_medium():
     """A Multifractal's roughness from a division by the position (no finite bound) and the
     noise as the density (no clamp after it): the density has no bound, so the medium is

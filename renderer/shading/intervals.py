@@ -311,10 +311,10 @@ def run_intervals(program: ShaderProgram, boxes_lo: np.ndarray, boxes_hi: np.nda
         elif name == "combine":
             for k, r in enumerate((a, b, c)):
                 iv.put(dst + k, *iv.get(r))
-        elif name == "copy":
+        elif name == "copy":  # a move, no rounding: constants stay constant (iv.constant)
             src = [iv.get(a + k) for k in range(p0)]
             for k in range(p0):
-                iv.put(dst + k, *src[k])
+                iv.lo[dst + k], iv.hi[dst + k] = src[k]
         elif name == "invert":
             t = iv.get(a)
             for k in range(3):
