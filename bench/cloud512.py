@@ -133,6 +133,10 @@ else:
     scene.cycles.use_denoising = False
     scene.cycles.use_adaptive_sampling = False
     scene.cycles.max_bounces = 8
+    # Every kind of bounce to the same limit, as Haze's max_bounces: Cycles' volume_bounces
+    # defaults to 0 (single scattering in the cloud), which left its image 2 % darker.
+    for kind in ("diffuse_bounces", "glossy_bounces", "transmission_bounces", "volume_bounces"):
+        setattr(scene.cycles, kind, 8)
     scene.cycles.device = "CPU"
 settings = scene.render.image_settings
 settings.file_format, settings.color_depth = "OPEN_EXR", "32"
