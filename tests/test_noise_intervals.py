@@ -1,7 +1,7 @@
 """Interval bounds of the Noise Texture (renderer.shading.noise_intervals): the Perlin
 bounds' certificates, and every dimension x fractal type's bound against the values the
-interpreter gives at 200,000 random points (through shading.evaluate's entry, the one the
-trackers call), bounded yet not absurdly loose.
+interpreter gives at 200,000 random points (through shading.evaluate's entry, the same
+interpreter the trackers call by address), bounded yet not absurdly loose.
 
 Measured (this file's points, bound width / width of the values met): 1.0 (Ridged, whose
 bound is met) to 3.5 (4D Multifractal, a product of 4.5 factors each as loose as the 4D

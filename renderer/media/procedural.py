@@ -77,8 +77,8 @@ def check_program(program: ShaderProgram, density: int, path: str) -> None:
 
 def build_program_tables(programs: list[ShaderProgram], density_regs: list[int]) -> tuple:
     """(shading tuple, density registers (K,) int64): MediaData.programs. The tuple has the
-    types of shading.table's (ShadingTables.arrays), so shading.evaluate's entry, compiled
-    for surface programs already, runs these too."""
+    types of shading.table's (ShadingTables.arrays): the interpreter runs them as it runs
+    surface programs (procedural._run through its address; shading.evaluate from Python)."""
     progs = np.zeros((len(programs), PROG.size), np.int32)
     code, init, data = [], [], []
     counts = [0, 0, 0]

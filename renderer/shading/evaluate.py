@@ -1,7 +1,7 @@
 """Run one material's program at given points from Python (tests, tools, the export of
-world programs): a jitted entry around the interpreter (compiled once, called by every stage). Procedural
-media (renderer.media.procedural) call the same entry from their trackers, with tables of
-the same types, so the interpreter compiles once for both."""
+world programs, procedural.evaluate_density): a jitted entry around the interpreter. The
+render kernels do not call it: they call the interpreter through its address
+(interpreter.program_entry, renderer.kernels.native_call)."""
 
 from __future__ import annotations
 
@@ -14,8 +14,9 @@ from .interpreter import run_program
 
 @kernel
 def evaluate_points(st, m, tri, bary, x, n, regs, first, width, out):
-    # The signature the render stages call it with (stage.apply_program), so that the
-    # interpreter compiles once: int64 indices, a bool variable (not a literal) for back.
+    # int64 indices and a bool variable (not a literal) for back: one compile of the
+    # interpreter per table type. Barycentrics and points stay float32 here (float() keeps
+    # float32 in numba), as the bake tests pin them against Cycles.
     back = tri.shape[0] < 0
     for k in range(tri.shape[0]):
         pos = (float(x[k, 0]), float(x[k, 1]), float(x[k, 2]))
