@@ -30,7 +30,7 @@ SPARSE_TYPES = ("float", "double")  # grid types read into bricks here
 
 
 def openvdb_module():
-    from addon.volume_grids import import_openvdb
+    from ..volume_grids import import_openvdb
 
     return import_openvdb()
 
