@@ -44,6 +44,9 @@ for _path in {paths!r}:
         sys.path.insert(0, _path)
 """
 
+ADDON_MODE_ENV = "HAZE_TEST_ADDON"
+EXTENSION_PACKAGE = "bl_ext.user_default.haze"  # bench.installed.PACKAGE (not imported: Blender side)
+
 EPILOGUE = """
 if __name__ == "__main__":
     _result = main()
@@ -116,17 +119,36 @@ def isolated_site(tmp: Path) -> Path:
     return site
 
 
+def addon_mode() -> str:
+    """How Blender runs get Haze: "installed" (the default, and CI's: the extension zip built
+    from this checkout, installed into the run's user folder, with its bundled renderer wheel)
+    or "clone" (HAZE_TEST_ADDON=clone: the checkout's addon/ and renderer/, for quick local
+    iteration only; no figure or CI run uses it)."""
+    mode = os.environ.get(ADDON_MODE_ENV, "installed")
+    if mode not in ("installed", "clone"):
+        raise ValueError(f"{ADDON_MODE_ENV} must be 'installed' or 'clone', not {mode!r}")
+    return mode
+
+
 def run_blender(body: str, tmp: Path, *, timeout: float = 900.0, numba_cache: Path | None = None,
                 dev_paths: bool = True, site: Path | None = None, env: dict[str, str] | None = None
                 ) -> BlenderRun:
     """Run `body` (Python source defining `main() -> dict`) with bpy in a subprocess.
 
-    dev_paths: put the repository, tests/ and examples/ on sys.path (the add-on from this
-    checkout). site: run isolated (python -S) with only this site folder for packages.
-    env: extra environment variables.
+    dev_paths: the run may enable Haze (bpy_helpers.enable_addon) and import tests/ and
+    examples/; Haze is the installed extension (copied into the run's user folder, the
+    process isolated from the venv's copies of the bundled packages) unless addon_mode() is
+    "clone", where the repository goes on sys.path. dev_paths=False: only tests/ and `site`,
+    for tests that install a zip themselves. site: run isolated (python -S) with only this
+    site folder for packages. env: extra environment variables.
     """
     tmp.mkdir(parents=True, exist_ok=True)
-    paths = [str(TESTS), str(EXAMPLES), str(REPO)] if dev_paths else [str(TESTS)]
+    mode = addon_mode() if dev_paths else "none"
+    paths = [str(TESTS), str(EXAMPLES)] if dev_paths else [str(TESTS)]
+    if mode == "clone":
+        paths.append(str(REPO))
+    if mode == "installed" and site is None:
+        site = isolated_site(tmp)
     if site is not None:
         paths.append(str(site))
     script = tmp / "blender_script.py"
@@ -134,7 +156,11 @@ def run_blender(body: str, tmp: Path, *, timeout: float = 900.0, numba_cache: Pa
     result_file = tmp / "result.json"
     extra = env or {}
     env = blender_environment(tmp, numba_cache)
-    env.update(extra, HAZE_TEST_RESULT=str(result_file))
+    if mode == "installed":
+        from bench.installed import copy_install, installed_user_folder
+
+        copy_install(installed_user_folder(), Path(env["BLENDER_USER_RESOURCES"]))
+    env.update(extra, HAZE_TEST_RESULT=str(result_file), **{ADDON_MODE_ENV: mode})
     command = [PYTHON, "-S", str(script)] if site is not None else [PYTHON, str(script)]
     process = subprocess.run(command, cwd=tmp, env=env, capture_output=True, text=True, timeout=timeout)
     result = json.loads(result_file.read_text()) if result_file.is_file() else {}
@@ -266,15 +292,47 @@ def assert_agree(comparison: Comparison, mean_tolerance: float = 0.01) -> None:
 # ------------------------------------------------------------------------------ Blender side
 
 
-def enable_dev_addon() -> None:
-    """Register the add-on of this checkout (as when enabled from a clone)."""
+def addon_package():
+    """Haze's package in this Blender run (see addon_mode), imported but not registered:
+    `bl_ext.user_default.haze` of the installed extension, or the clone's `addon`."""
+    import importlib
+
+    mode = os.environ.get(ADDON_MODE_ENV)
+    if mode not in ("installed", "clone"):
+        raise RuntimeError("this Blender run was not started with Haze (run_blender(dev_paths=False))")
+    return importlib.import_module(EXTENSION_PACKAGE if mode == "installed" else "addon")
+
+
+def addon_module(name: str):
+    """A module of Haze's package by its name inside the package, e.g. "export.scene"."""
+    import importlib
+
+    return importlib.import_module(f"{addon_package().__name__}.{name}")
+
+
+def addon_names(module: str, *names: str) -> tuple:
+    """Attributes of one of Haze's modules, as `from <package>.<module> import names` would."""
+    found = addon_module(module)
+    return tuple(getattr(found, name) for name in names)
+
+
+def enable_addon():
+    """Enable Haze as a user does (the clone's add-on is registered directly); returns its package."""
     import bpy
 
+    package = addon_package()
     if hasattr(bpy.types.Scene, "haze"):
-        return
-    import addon
+        return package
+    if package.__name__ == "addon":
+        package.register()
+        return package
+    import addon_utils
 
-    addon.register()
+    def fail(error):
+        raise error
+
+    addon_utils.enable(package.__name__, default_set=True, handle_error=fail)
+    return package
 
 
 def configure_cycles(scene, samples: int, max_bounces: int, seed: int, threads: int = 2) -> None:

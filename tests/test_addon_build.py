@@ -20,6 +20,7 @@ from pathlib import Path
 import pytest
 from bpy_helpers import REPO, isolated_site, run_blender
 
+from bench.installed import built_zip as built_zip_once
 from renderer.imageio import read_exr
 
 MANIFEST = tomllib.loads((REPO / "blender_manifest.toml").read_text())
@@ -142,7 +143,7 @@ def main():
 
 @pytest.fixture(scope="module")
 def built_zip() -> Path:
-    return build_tool.main([])
+    return built_zip_once()  # `make extension` of this checkout, built once per source (or HAZE_TEST_ZIP)
 
 
 def test_zip_holds_addon_and_wheels_only(built_zip):

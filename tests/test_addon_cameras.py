@@ -177,7 +177,7 @@ def render_regions(folder):
 
 
 def main():
-    H.enable_dev_addon()
+    H.enable_addon()
     only = os.environ.get("HAZE_CASES")
     report = {{}}
     for name, (width, height, cycles_samples, haze_samples) in CASES.items():

@@ -25,7 +25,7 @@ import bpy_helpers as H
 
 
 def main():
-    H.enable_dev_addon()
+    H.enable_addon()
     scene = bpy.context.scene
     for obj in list(scene.collection.all_objects):
         if obj.type == "MESH":

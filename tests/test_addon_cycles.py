@@ -135,7 +135,7 @@ def build(name):
 
 
 def main():
-    H.enable_dev_addon()
+    H.enable_addon()
     only = os.environ.get("HAZE_SCENES")
     report = {{}}
     for name, (cycles_samples, haze_samples) in SAMPLES.items():

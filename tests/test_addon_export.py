@@ -36,7 +36,7 @@ class Captured(Exception):
 
 def capture_render_export():
     """Make F12 stop right after the export and keep the exported scene."""
-    import addon.export.scene as export_module
+    export_module = H.addon_module("export.scene")
     original = export_module.export_scene
 
     def capturing(*args, **kwargs):
@@ -251,7 +251,7 @@ def save(result, name):
 
 
 def export_viewport():
-    from addon.export.scene import export_scene
+    export_scene = H.addon_module("export.scene").export_scene
     return export_scene(bpy.context.evaluated_depsgraph_get(), render_depsgraph=False)
 
 
@@ -283,7 +283,7 @@ def camera_cases(scene):
 
 
 def error_cases(scene):
-    from addon.export.messages import ExportError
+    ExportError = H.addon_module("export.messages").ExportError
     errors = {}
     camera = scene.camera
     camera.data.type = "PANO"
@@ -303,7 +303,7 @@ def error_cases(scene):
 
 
 def main():
-    H.enable_dev_addon()
+    H.enable_addon()
     capture_render_export()
     scene = build_main_scene()
     scene.render.engine = "HAZE"
@@ -632,7 +632,7 @@ def test_groups_muted_nodes_and_unsupported_closures(exported):
 
 REGISTER_BODY = r'''
 import bpy
-import addon
+import bpy_helpers as H
 
 
 def engine_selectable():
@@ -665,7 +665,7 @@ def state():
 
 
 def main():
-    addon.register()
+    addon = H.enable_addon()  # registers it
     registered = state()
     addon.unregister()
     unregistered = state()

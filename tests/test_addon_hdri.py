@@ -54,7 +54,7 @@ RUNS = {RUNS}
 
 
 def main():
-    H.enable_dev_addon()
+    H.enable_addon()
     report = {{}}
     for projection, (cycles_samples, haze_samples) in {SAMPLES!r}.items():
         folder = os.path.join(os.getcwd(), projection)

@@ -107,7 +107,7 @@ def passes(view_layer, on):
 
 
 def main():
-    H.enable_dev_addon()
+    H.enable_addon()
     scene = stage()
     view_layer = scene.view_layers[0]
     passes(view_layer, True)

@@ -64,7 +64,7 @@ def passes(view_layer, on):
 
 
 def main():
-    H.enable_dev_addon()
+    H.enable_addon()
     scene = stage()
     view_layer = scene.view_layers[0]
     passes(view_layer, True)
@@ -241,7 +241,7 @@ def render(scene, spp, seed, denoise, name):
 
 
 def main():
-    H.enable_dev_addon()
+    H.enable_addon()
     scene = C.build_fog_cornell(width=128, height=128, max_bounces=3)
     scene.render.use_compositing = False
     scene.view_layers[0].cycles.denoising_store_passes = True

@@ -11,13 +11,17 @@ from __future__ import annotations
 import pytest
 from bpy_helpers import isolated_site, run_blender, shared_numba_cache
 
+from bench.installed import built_zip as built_zip_once
+
 pytestmark = [pytest.mark.bpy]  # the real-compile test is also marked slow
 
 BODY = r'''
 import subprocess, time
 import bpy
-import addon.background as B
-from addon import kernel_cache
+import bpy_helpers as H
+
+B = H.addon_module("background")
+kernel_cache = H.addon_module("kernel_cache")
 
 ROOT = os.environ["HAZE_CACHE_DIR"]
 
@@ -67,7 +71,7 @@ class Layout:
 
 
 def panel():
-    from addon.preferences import HazePreferences
+    HazePreferences = H.addon_module("preferences").HazePreferences
     lines = []
     HazePreferences.draw(type("Panel", (), {"layout": Layout(lines)})(), bpy.context)
     return lines
@@ -77,7 +81,7 @@ def main():
     out = {}
     stand_in("import time; print('compiling kernels (first run only): shade_media', flush=True); "
              "time.sleep(120)")
-    import addon
+    addon = H.addon_package()
     addon.register()  # starts the stand-in compile
     job = B._job
     out["registered_kind"] = B.state().kind
@@ -114,8 +118,8 @@ def main():
     out["failed_log"] = [str(B.state().log), open(B.state().log).read()]
     addon.unregister()
 
-    from addon import precompile
-    from addon.export.camera import rigid_matrix
+    precompile = H.addon_module("precompile")
+    rigid_matrix = H.addon_module("export.camera").rigid_matrix
     from dataclasses import replace
 
     from renderer.compile import compile_scene
@@ -223,12 +227,13 @@ def test_ready_and_failed_states(prefs_run):
 REAL_BODY = r'''
 import time
 import bpy
-import addon.background as B
+import bpy_helpers as H
+
+B = H.addon_module("background")
 
 
 def main():
-    import addon
-    addon.register()
+    H.enable_addon()
     end = time.monotonic() + 900
     while B.running() and time.monotonic() < end:
         time.sleep(0.2)
@@ -275,9 +280,7 @@ def main():
 def test_installed_extensions_background_compile_uses_its_bundled_renderer(tmp_path):
     """In Blender the child runs Blender's Python (here python -S, like the isolated install
     test) and must find the renderer and numba in the extension's wheels."""
-    from test_addon_reload import load_build_tool
-
-    built_zip = load_build_tool().main([])
+    built_zip = built_zip_once()
     run = run_blender(EXTENSION_BODY.replace("ZIP,", f"{str(built_zip)!r},"), tmp_path / "run", timeout=1000,
                       numba_cache=shared_numba_cache(), dev_paths=False, site=isolated_site(tmp_path),
                       env={"HAZE_BACKGROUND_COMPILE": "1"})

@@ -24,7 +24,7 @@ import time
 import bpy
 import bpy_helpers as H
 import blender_cornell as C
-import addon.session as session
+session = H.addon_module("session")
 
 calls = []
 _run = session.RenderSession.run
@@ -63,7 +63,7 @@ def materials():
 
 
 def main():
-    H.enable_dev_addon()
+    H.enable_addon()
     scene = C.clear_scene()
     scene.render.engine = "HAZE"
     scene.haze.workers = 1

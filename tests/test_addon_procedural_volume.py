@@ -34,7 +34,7 @@ import os
 import bpy
 import bpy_helpers as H
 import blender_cornell as C
-from addon.export.scene import export_scene
+export_scene = H.addon_module("export.scene").export_scene
 
 SIZE, RUNS, CYCLES_SAMPLES, HAZE_SAMPLES = SIZE_RUNS_SAMPLES
 RENDER = "HAZE_TEST_RENDER" in os.environ
@@ -106,7 +106,7 @@ def volume_cube_case():
 
 
 def main():
-    H.enable_dev_addon()
+    H.enable_addon()
     result = cloud_case()
     result["volume_cube"] = volume_cube_case()
     return result

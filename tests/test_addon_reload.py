@@ -1,22 +1,24 @@
 """Disable and enable the add-on, then F12: it starts warm (issue 19).
 
-Blender enables the add-on of this checkout the way a user does (linked into the user's
-add-on folder, addon_utils.enable), renders the fog box, disables and enables it, renders
-again, then loads factory settings, enables it and renders a third time, and once more
-after importing the add-on and the renderer afresh (new named-tuple classes). Numba's event API
-records every compile. The kernel cache is a copy of the shared warm test cache with one
-small kernel (film.splat) taken out, so the first F12 really compiles something and must
-say so in the render stats; the later ones must compile nothing and say nothing.
+Blender enables the installed extension the way a user does (addon_utils.enable; with
+HAZE_TEST_ADDON=clone the checkout's add-on linked into the user's add-on folder), renders
+the fog box, disables and enables it, renders again, then loads factory settings, enables it
+and renders a third time, and once more after importing the add-on and the renderer afresh
+(new named-tuple classes). Numba's event API records every compile. The kernel cache is a
+copy of the shared warm test cache with one small kernel (film.splat) taken out, so the
+first F12 really compiles something and must say so in the render stats; the later ones
+must compile nothing and say nothing.
 """
 
 from __future__ import annotations
 
-import importlib.util
 import shutil
 from pathlib import Path
 
 import pytest
-from bpy_helpers import REPO, isolated_site, run_blender, shared_numba_cache
+from bpy_helpers import REPO, addon_mode, isolated_site, run_blender, shared_numba_cache
+
+from bench.installed import built_zip as built_zip_once
 
 pytestmark = [pytest.mark.bpy, pytest.mark.slow]
 
@@ -28,7 +30,9 @@ import numba.core.event as numba_event
 import bpy_helpers as H
 import blender_cornell as C
 
-ADDON = "haze"  # the add-on folder linked into BLENDER_USER_RESOURCES/scripts/addons
+# The installed extension's package, or (HAZE_TEST_ADDON=clone) the checkout's add-on folder
+# linked into BLENDER_USER_RESOURCES/scripts/addons.
+ADDON = "haze" if os.environ[H.ADDON_MODE_ENV] == "clone" else H.EXTENSION_PACKAGE
 stats = []
 
 
@@ -94,7 +98,8 @@ def main():
     # The issue's suspect: a reload recreating the renderer's named-tuple classes. Forget
     # every module of the add-on and the renderer, so both are imported afresh.
     addon_utils.disable(ADDON, default_set=True)
-    for name in [m for m in sys.modules if m.split(".")[0] in (ADDON, "renderer")]:
+    ours = (ADDON, "renderer")
+    for name in [m for m in sys.modules if m in ours or m.startswith(tuple(o + "." for o in ours))]:
         del sys.modules[name]
     addon_utils.enable(ADDON, default_set=True)
     out["reimported"] = f12("reimported")
@@ -118,9 +123,10 @@ def partly_cold_cache(root: Path) -> Path:
 def reload_run(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("reload")
     root = partly_cold_cache(tmp / "cache")
-    addons = tmp / "run" / "blender_user" / "scripts" / "addons"
-    addons.mkdir(parents=True)
-    (addons / "haze").symlink_to(REPO / "addon", target_is_directory=True)
+    if addon_mode() == "clone":
+        addons = tmp / "run" / "blender_user" / "scripts" / "addons"
+        addons.mkdir(parents=True)
+        (addons / "haze").symlink_to(REPO / "addon", target_is_directory=True)
     run = run_blender(BODY, tmp / "run", timeout=900, env={"HAZE_CACHE_DIR": str(root)})
     assert run.returncode == 0 and run.result, run.describe()
     return run.result
@@ -198,17 +204,10 @@ def alive(pid):
 '''
 
 
-def load_build_tool():
-    spec = importlib.util.spec_from_file_location("build_extension", REPO / "tools" / "build_extension.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
 @pytest.fixture(scope="module")
 def extension_run(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("extension_reload")
-    built_zip = load_build_tool().main([])
+    built_zip = built_zip_once()
     root = partly_cold_cache(tmp / "cache")
     body = EXTENSION_BODY.replace("ZIP,", f"{str(built_zip)!r},")
     run = run_blender(body, tmp / "run", timeout=900, dev_paths=False, site=isolated_site(tmp),

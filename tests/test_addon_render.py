@@ -59,7 +59,7 @@ class Recorder:
 
 def instrument():
     """Every render session talks to Blender's engine through a Recorder."""
-    import addon.session as session
+    session = H.addon_module("session")
     original_init = session.RenderSession.__init__
 
     def init(self, engine, depsgraph, *args, **kwargs):
@@ -116,7 +116,7 @@ def hdri_stage():
 
 
 def main():
-    H.enable_dev_addon()
+    H.enable_addon()
     instrument()
     results = {}
     scene = cornell(8, seed=3)

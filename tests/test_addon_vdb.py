@@ -22,10 +22,10 @@ import bpy
 import bpy_helpers as H
 import blender_cornell as C
 
-H.enable_dev_addon()
-from addon.export import volume_read as V
-from addon.export.scene import export_scene
-from addon.volume_grids import import_openvdb
+H.enable_addon()
+V = H.addon_module("export.volume_read")
+export_scene = H.addon_module("export.scene").export_scene
+import_openvdb = H.addon_module("volume_grids").import_openvdb
 
 VDB = import_openvdb()
 ARRAYS = {}
@@ -85,7 +85,7 @@ def smoke_domain(transform):
     frame 3 (density and flame; nothing is simulated); its material reads the density and
     the temperature Cycles derives from the flame."""
     bpy.ops.wm.read_factory_settings(use_empty=True)
-    H.enable_dev_addon()
+    H.enable_addon()
     scene = bpy.context.scene
     C.add_camera(scene, (0.0, -4.0, 1.0), (90.0, 0.0, 0.0), lens=35.0)
     mesh = bpy.data.meshes.new("Domain")
@@ -159,7 +159,7 @@ def medium_arrays(prefix, result):
 
 def main():
     bpy.ops.wm.read_factory_settings(use_empty=True)
-    H.enable_dev_addon()
+    H.enable_addon()
     C.add_camera(bpy.context.scene, (0.0, -4.0, 1.0), (90.0, 0.0, 0.0), lens=35.0)
     report = {}
     transform = np.array([[0.05, 0.01, 0.0, 0.3], [0.0, 0.06, 0.01, -0.2], [0.0, 0.0, 0.04, 0.1],
@@ -183,7 +183,7 @@ def main():
     report["sampled"] = medium_arrays("sampled", export())
     # A fire: density, flame and temperature grids (the flame and heat inside the smoke).
     bpy.ops.wm.read_factory_settings(use_empty=True)
-    H.enable_dev_addon()
+    H.enable_addon()
     C.add_camera(bpy.context.scene, (0.0, -4.0, 1.0), (90.0, 0.0, 0.0), lens=35.0)
     flame = np.where(values > 0.8, values - 0.5, 0.0).astype(np.float32)
     ARRAYS["fire.flame"], ARRAYS["fire.temperature"] = flame, (0.5 * values).astype(np.float32)
@@ -200,7 +200,7 @@ def main():
         report[f"smoke_{kind}"] = medium_arrays(f"smoke_{kind}", export())
     # A two-frame sequence: frame f loads seq_000f.vdb (another cloud each).
     bpy.ops.wm.read_factory_settings(use_empty=True)
-    H.enable_dev_addon()
+    H.enable_addon()
     C.add_camera(bpy.context.scene, (0.0, -4.0, 1.0), (90.0, 0.0, 0.0), lens=35.0)
     for frame in (1, 2):
         ARRAYS[f"seq{frame}.values"] = cloud((18, 16, 20), 10 + frame)

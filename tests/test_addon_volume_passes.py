@@ -48,7 +48,7 @@ RUNS = {RUNS}
 
 
 def main():
-    H.enable_dev_addon()
+    H.enable_addon()
     scene = S.build_stage(SIZE, balls=False)
     view_layer = scene.view_layers[0]
     view_layer.cycles.use_pass_volume_direct = view_layer.cycles.use_pass_volume_indirect = True

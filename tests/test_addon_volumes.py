@@ -297,11 +297,12 @@ from mathutils import Matrix
 import bpy_helpers as H
 import blender_cornell as C
 
-H.enable_dev_addon()
-from addon.export import volume_read as V
-from addon.export.grid_sampler import GridSampler, index_box
-from addon.export.scene import export_scene
-from addon.volume_grids import import_openvdb, smoke_ball_density, write_pbrt
+H.enable_addon()
+V = H.addon_module("export.volume_read")
+GridSampler, index_box = H.addon_names("export.grid_sampler", "GridSampler", "index_box")
+export_scene = H.addon_module("export.scene").export_scene
+import_openvdb, smoke_ball_density, write_pbrt = H.addon_names(
+    "volume_grids", "import_openvdb", "smoke_ball_density", "write_pbrt")
 from renderer.scenefile import save_scene
 
 OUT = Path(os.getcwd())
@@ -394,7 +395,7 @@ def analytic_volume(name, resolution, low, high, material=None):
 
 def empty_scene():
     bpy.ops.wm.read_factory_settings(use_empty=True)
-    H.enable_dev_addon()
+    H.enable_addon()
     scene = bpy.context.scene
     C.add_camera(scene, (0.0, -4.0, 1.0), (90.0, 0.0, 0.0), lens=35.0)
     scene.render.resolution_x = scene.render.resolution_y = 32
@@ -1048,12 +1049,12 @@ RUNS, SIZE, SAMPLES, BOUNCES = {runs}, {size}, {samples}, {bounces}
 
 
 def main():
-    H.enable_dev_addon()
+    H.enable_addon()
     scene = G.smoke_ball(SIZE, Path(os.getcwd()) / "volumes", bounces=BOUNCES)
     paths = H.render_both(scene, os.getcwd(), RUNS, SAMPLES[0], SAMPLES[1], BOUNCES)
     # A render of broken volumes through the engine must finish (warnings, no crash).
     bpy.ops.wm.read_factory_settings(use_empty=True)
-    H.enable_dev_addon()
+    H.enable_addon()
     scene = G.smoke_ball(16, Path(os.getcwd()) / "volumes", bounces=1)
     broken = bpy.data.volumes.new("Broken")
     broken.filepath = "/nonexistent/broken.vdb"
@@ -1104,10 +1105,10 @@ RUNS, SIZE, SAMPLES = {runs}, {size}, {samples}
 
 
 def fire_scene(folder):
-    from addon.operators_volume import add_volume_object
+    add_volume_object = H.addon_module("operators_volume").add_volume_object
 
     bpy.ops.wm.read_factory_settings(use_empty=True)
-    H.enable_dev_addon()
+    H.enable_addon()
     scene = bpy.context.scene
     C.black_world(scene)
     C.quad("Wall", [(-2, 0.45, -2), (2, 0.45, -2), (2, 0.45, 2), (-2, 0.45, 2)],

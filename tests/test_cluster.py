@@ -198,7 +198,7 @@ import bpy_helpers as H
 
 
 def main():
-    H.enable_dev_addon()
+    H.enable_addon()
     scene = bpy.context.scene
     H.configure_haze(scene, 4, 2, seed=1, workers=2)
     scene.haze.cluster = "local"  # F12 with a cluster set renders through it

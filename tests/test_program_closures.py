@@ -296,7 +296,7 @@ def gradient_world_scene():
 
 
 def main():
-    H.enable_dev_addon()
+    H.enable_addon()
     return {{"emitter": emitter_scene(), "leaf": leaf_scene(), "normal_map": normal_map_scene(),
              "bump": bump_scene(),
              "gradient_world": gradient_world_scene()}}

@@ -334,7 +334,7 @@ def haze_values(obj, material, emission, uv):
 
 
 def main():
-    H.enable_dev_addon()
+    H.enable_addon()
     scene, obj = plane()
     scene.render.engine = "CYCLES"
     scene.cycles.samples = 1
@@ -492,7 +492,7 @@ def wall_material():
 
 
 def main():
-    H.enable_dev_addon()
+    H.enable_addon()
     scene = C.clear_scene()
     H.world_color(scene, (0.35, 0.4, 0.45), 1.0)
     uv_quad("Floor", [(-3, -3, 0), (3, -3, 0), (3, 3, 0), (-3, 3, 0)], floor_material())
