@@ -2,10 +2,12 @@
 
 Steps:
 1. Stage build/extension/haze/: the add-on (addon/), the manifest restricted to the chosen
-   platforms, and wheels/: the renderer (renderer/ packed as a pure-Python wheel, so the
-   add-on and any worker process import it as the top-level `renderer` package) plus the
-   exact third-party wheels the manifest lists, fetched with `pip download` into a cache
-   (build/wheels/). No tests, examples, caches or __pycache__ go in.
+   platforms, and wheels/: the renderer wheel, built by the project's own build backend
+   (tools/wheel_backend.py, so it is byte for byte what `pip wheel .` makes; the add-on and
+   any worker process import it as the top-level `renderer` package) plus the exact
+   third-party wheels the manifest lists, fetched with `pip download` into a cache
+   (build/wheels/). No tests, examples, caches or __pycache__ go in. Blender unpacks the
+   bundled wheels itself and does not resolve their Requires-Dist.
 2. Run Blender's extension tool (shipped in the bpy wheel) to `validate` and `build` it.
 
 Usage: .venv/bin/python tools/build_extension.py [--platform linux-x64 ...] [--all-platforms]
@@ -14,15 +16,12 @@ Usage: .venv/bin/python tools/build_extension.py [--platform linux-x64 ...] [--a
 from __future__ import annotations
 
 import argparse
-import base64
-import hashlib
 import importlib.util
 import re
 import shutil
 import subprocess
 import sys
 import tomllib
-import zipfile
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -32,8 +31,18 @@ STAGE = BUILD / "extension" / "haze"
 WHEEL_CACHE = BUILD / "wheels"
 DIST = ROOT / "dist"
 IGNORED = shutil.ignore_patterns("__pycache__", "*.pyc", "*.pyo", "README-section.md", ".*")
-FIXED_ZIP_TIME = (2024, 1, 1, 0, 0, 0)  # reproducible renderer wheel
-RENDERER_DIST = "haze_renderer"
+
+
+def load_wheel_backend():
+    """tools/wheel_backend.py, loaded by path (this file is itself run or loaded by path)."""
+    spec = importlib.util.spec_from_file_location("wheel_backend", ROOT / "tools" / "wheel_backend.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+wheel_backend = load_wheel_backend()
+RENDERER_DIST = wheel_backend.distribution_name()  # haze_renderer, from pyproject.toml's [project]
 
 
 def extension_cli() -> Path:
@@ -88,37 +97,14 @@ def download_wheel(filename: str) -> Path:
     return target
 
 
-def record_line(path: str, data: bytes) -> str:
-    digest = base64.urlsafe_b64encode(hashlib.sha256(data).digest()).rstrip(b"=").decode()
-    return f"{path},sha256={digest},{len(data)}"
-
-
 def renderer_wheel(version: str, dest: Path) -> Path:
-    """Pack renderer/ (sources only) as a pure-Python wheel, reproducibly."""
-    files = sorted(p for p in (ROOT / "renderer").rglob("*")
-                   if p.is_file() and "__pycache__" not in p.parts and p.suffix not in {".pyc", ".pyo"})
-    info = f"{RENDERER_DIST}-{version}.dist-info"
-    metadata = {
-        f"{info}/METADATA": f"Metadata-Version: 2.1\nName: {RENDERER_DIST}\nVersion: {version}\n"
-                            "Summary: Haze volumetric path tracer (bundled with the Haze extension)\n",
-        f"{info}/WHEEL": "Wheel-Version: 1.0\nGenerator: haze-build\nRoot-Is-Purelib: true\n"
-                         "Tag: py3-none-any\n",
-        f"{info}/top_level.txt": "renderer\n",
-    }
-    path = dest / f"{RENDERER_DIST}-{version}-py3-none-any.whl"
-    records = []
-    with zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED) as archive:
-        for file in files:
-            name = file.relative_to(ROOT).as_posix()
-            data = file.read_bytes()
-            archive.writestr(zipfile.ZipInfo(name, FIXED_ZIP_TIME), data, zipfile.ZIP_DEFLATED)
-            records.append(record_line(name, data))
-        for name, text in metadata.items():
-            archive.writestr(zipfile.ZipInfo(name, FIXED_ZIP_TIME), text, zipfile.ZIP_DEFLATED)
-            records.append(record_line(name, text.encode()))
-        records.append(f"{info}/RECORD,,")
-        archive.writestr(zipfile.ZipInfo(f"{info}/RECORD", FIXED_ZIP_TIME), "\n".join(records) + "\n")
-    return path
+    """The renderer wheel (the pip wheel of this repository), reproducibly, in `dest`.
+    `version` is the manifest's: pyproject.toml's [project] version must equal it."""
+    project_version = wheel_backend.project()["version"]
+    if project_version != version:
+        raise SystemExit(f"pyproject.toml's version {project_version} is not "
+                         f"blender_manifest.toml's {version}")
+    return wheel_backend.write_wheel(dest)
 
 
 def toml_list(values: list[str]) -> str:
