@@ -46,11 +46,12 @@ def connect(address: str, workers: int = 1, timeout: float = CONNECT_TIMEOUT) ->
 def _start_local(workers: int, timeout: float) -> Client:
     from distributed import Client, LocalCluster
 
-    from .workers import _sigint_ignored
+    from .workers import spawning
 
     # Worker processes start with SIGINT ignored (inherited through spawn): a Ctrl-C sent to
-    # the process group must reach this process only, which cancels the cluster's work.
-    with _sigint_ignored():
+    # the process group must reach this process only, which cancels the cluster's work. Nor
+    # do they run this process's script again (workers.spawning).
+    with spawning():
         # No dashboard (it needs bokeh); the scheduler's small HTTP server takes any free port.
         cluster = LocalCluster(n_workers=max(1, workers), threads_per_worker=1, processes=True,
                                dashboard_address=None, scheduler_kwargs={"dashboard_address": ":0"},

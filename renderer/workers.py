@@ -30,10 +30,12 @@ import os
 import pickle
 import signal
 import struct
+import sys
 import tempfile
 import threading
 import time
 import traceback
+import types
 from collections.abc import Iterator
 from contextlib import contextmanager
 from multiprocessing.connection import Connection
@@ -245,12 +247,42 @@ def _sigint_ignored() -> Iterator[None]:
         signal.signal(signal.SIGINT, previous)
 
 
+_MAIN_LOCK = threading.RLock()
+
+
+@contextmanager
+def _main_script_hidden() -> Iterator[None]:
+    """While child processes are spawned, __main__ is a bare module: spawn otherwise tells
+    each child to run the parent's script again as __mp_main__ (it sends the path of
+    __main__.__file__). A user's bpy script cannot import bpy there (a traceback in its
+    output) and any other script would redo its work; the workers need nothing from it.
+    A `python -m` main was already skipped by multiprocessing and is left alone."""
+    with _MAIN_LOCK:
+        real = sys.modules.get("__main__")
+        if real is None or getattr(real, "__spec__", None) is not None or not hasattr(real, "__file__"):
+            yield
+            return
+        sys.modules["__main__"] = types.ModuleType("__main__")
+        try:
+            yield
+        finally:
+            sys.modules["__main__"] = real
+
+
+@contextmanager
+def spawning() -> Iterator[None]:
+    """How every Haze child process is started (workers, a LocalCluster's): SIGINT ignored
+    and the parent's script hidden."""
+    with _sigint_ignored(), _main_script_hidden():
+        yield
+
+
 class Worker:
     def __init__(self) -> None:
         ctx = multiprocessing.get_context("spawn")  # Blender cannot fork; spawn everywhere alike
         self.conn, child = ctx.Pipe()
         self.process = ctx.Process(target=_worker_main, args=(child,), daemon=True, name="haze-worker")
-        with _sigint_ignored():
+        with spawning():
             self.process.start()
         child.close()
         self.unit: Unit | None = None  # the unit in flight

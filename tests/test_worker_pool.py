@@ -326,3 +326,37 @@ def test_ctrl_c_stops_a_render_inside_a_kernel():
         interrupt.cancel()
     assert stopped - sent[0] < 2.0  # "within about a second"; the bound leaves room for a busy machine
     assert not set(pids) & set(worker_pids())  # the worker stuck in the kernel was terminated
+
+
+USER_SCRIPT = """\
+import sys
+sys.path[:0] = {paths!r}
+print("the user's script runs", flush=True)
+from examples.scenes import cornell_box
+from renderer.render import render_progressive
+
+final = list(render_progressive(cornell_box(size=16, spp=2), workers=2))[-1]
+print("rendered", int(final.film.n.sum()), flush=True)
+"""
+
+
+@pytest.mark.slow
+def test_workers_never_run_the_users_script_again(tmp_path):
+    """A script run by path (its __main__ has a __file__), without a __main__ guard, renders
+    on two workers: spawn would have each worker run it again (here it would start workers
+    of its own while bootstrapping, and a bpy script fails to import bpy there). It runs
+    once and prints no traceback."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    repo = Path(__file__).resolve().parents[1]
+    script = tmp_path / "user_script.py"
+    script.write_text(USER_SCRIPT.format(paths=[str(repo)]))
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+    done = subprocess.run([sys.executable, str(script)], cwd=tmp_path, env=env, capture_output=True,
+                          text=True, timeout=900)
+    output = done.stdout + done.stderr
+    assert done.returncode == 0, output
+    assert output.count("the user's script runs") == 1, output
+    assert "Traceback" not in output and "rendered 512" in output, output
