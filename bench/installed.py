@@ -43,7 +43,7 @@ COMPLETE = "installed.ok"
 
 INSTALL = """\
 import sys, bpy
-bpy.ops.extensions.package_install_files(filepath=sys.argv[1], repo={repo!r}, enable_on_install=False)
+bpy.ops.extensions.package_install_files(filepath=sys.argv[1], repo={repo!r}, enable_on_install=True)
 """
 
 
@@ -102,8 +102,11 @@ def install(zip_path: Path, folder: Path) -> None:
     env.update(HOME=str(home), BLENDER_USER_RESOURCES=str(user))
     done = subprocess.run([sys.executable, "-c", INSTALL.format(repo=REPOSITORY), str(zip_path)], env=env,
                           capture_output=True, text=True, timeout=600)
+    # Enabled on install, as a user's Blender does: that extracts the bundled wheels into
+    # extensions/.local, which Blender puts on sys.path at every later start.
     init = user / "extensions" / REPOSITORY / "haze" / "__init__.py"
-    if done.returncode != 0 or not init.is_file():
+    wheels = user / "extensions" / ".local" / "lib" / f"python{sys.version_info[0]}.{sys.version_info[1]}"
+    if done.returncode != 0 or not init.is_file() or not (wheels / "site-packages" / "renderer").is_dir():
         raise RuntimeError(f"installing {zip_path} failed (exit {done.returncode}):\n"
                            f"{done.stdout[-3000:]}\n{done.stderr[-3000:]}")
 

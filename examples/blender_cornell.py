@@ -13,6 +13,7 @@ from this checkout. The scene is built with bpy.data only (no operators), so the
 from __future__ import annotations
 
 import argparse
+import importlib
 import math
 import sys
 from pathlib import Path
@@ -172,7 +173,7 @@ def build_fog_cornell(width: int = 64, height: int = 64, max_bounces: int = 3) -
 
 def enable_haze() -> None:
     """Use the installed Haze extension if present, else the add-on of this checkout."""
-    if hasattr(bpy.types.Scene, "haze"):
+    if haze_engine() is not None:
         return
     import addon_utils
 
@@ -185,6 +186,20 @@ def enable_haze() -> None:
     import addon
 
     addon.register()
+
+
+def haze_engine() -> type | None:
+    """The registered Haze render engine class, if any."""
+    return next((e for e in bpy.types.RenderEngine.__subclasses__() if getattr(e, "bl_idname", "") == "HAZE"),
+                None)
+
+
+def haze_module(name: str):
+    """A module of the enabled Haze add-on by its name inside the package ("operators_volume"):
+    installed, the package is bl_ext.<repository>.haze; from a clone, addon."""
+    enable_haze()
+    package = sys.modules[haze_engine().__module__].__package__
+    return importlib.import_module(f"{package}.{name}")
 
 
 def render_to(scene: bpy.types.Scene, out_dir: Path, stem: str) -> tuple[Path, Path]:

@@ -46,13 +46,12 @@ from mathutils import Matrix
 
 REPO = Path(__file__).resolve().parents[1]
 for _path in (REPO, REPO / "examples"):
-    if str(_path) not in sys.path:
-        sys.path.insert(0, str(_path))
+    if str(_path) not in sys.path:  # appended: an installed Haze's renderer comes first
+        sys.path.append(str(_path))
 
 import blender_cornell as C  # noqa: E402
 import blender_materials as M  # noqa: E402
 
-from addon.volume_grids import gaussian_smoke_density, read_pbrt, smoke_ball_density, write_pbrt  # noqa: E402
 from examples.scenes import FIG1_SIGMA_A, FIG1_SIGMA_S, icosphere  # noqa: E402
 
 # examples.media_scenes (Fig. 6 to 8 constants) is imported by the builders that need it: it
@@ -134,9 +133,19 @@ def volume_scatter_absorb(material_name: str, sigma_a, sigma_s, g: float,
     return target
 
 
+def _volumes():
+    """The enabled add-on's Add > Volume helpers (its operators_volume module)."""
+    return C.haze_module("operators_volume")
+
+
+def _grids():
+    """The enabled add-on's grid file helpers (its volume_grids module)."""
+    return C.haze_module("volume_grids")
+
+
 def grid_volume(name: str, grids, center, size: float, material, folder: Path) -> bpy.types.Object:
     """A Volume object whose grid(s) fill a cube of edge `size` centred at `center` (Blender)."""
-    from addon.operators_volume import add_volume_object
+    add_volume_object = _volumes().add_volume_object
 
     half = size / 2.0
     obj = add_volume_object(bpy.context, name, grids, (-half,) * 3, (half,) * 3, material, folder)
@@ -162,25 +171,25 @@ def fog(size: int, g: float) -> bpy.types.Scene:
 def smoke_ball(size: int, folder: Path, bounces: int = MEDIA_BOUNCES) -> bpy.types.Scene:
     """Fig. 5: the Fig. 3 ball (11^3 voxels) as a Volume object, Principled Volume reading its
     density: Color 0.1 and Density 100 give sigma_s 10 and sigma_a 90 per unit density."""
-    from addon.operators_volume import principled_volume_material
+    principled_volume_material = _volumes().principled_volume_material
 
     scene = cornell(size, bounces)
     material = principled_volume_material("Smoke", (0.1, 0.1, 0.1), 100.0)
     center = paper_to_blender((0.0, -0.25, 0.0))
-    grid_volume("Smoke Ball", smoke_ball_density(11), center, 1.2, material, folder)
+    grid_volume("Smoke Ball", _grids().smoke_ball_density(11), center, 1.2, material, folder)
     return scene
 
 
 def yellow_smoke(size: int, folder: Path) -> bpy.types.Scene:
     """Fig. 6: Color (0.7, 0.4375, 0.1) and Density 8 give sigma_s (5.6, 3.5, 0.8) and sigma_a
     (2.4, 4.5, 7.2); times the gallery's peak density 0.6."""
-    from addon.operators_volume import principled_volume_material
+    principled_volume_material = _volumes().principled_volume_material
     from examples.media_scenes import FIG6_G
 
     scene = cornell(size, MEDIA_BOUNCES)
     material = principled_volume_material("Yellow Smoke", (0.7, 0.4375, 0.1), 8.0 * 0.6, FIG6_G)
-    grid_volume("Yellow Smoke", gaussian_smoke_density(), paper_to_blender((0.0, -0.35, 0.0)), 1.3, material,
-                folder)
+    grid_volume("Yellow Smoke", _grids().gaussian_smoke_density(), paper_to_blender((0.0, -0.35, 0.0)), 1.3,
+                material, folder)
     return scene
 
 
@@ -188,7 +197,7 @@ def fire_ball(size: int, folder: Path) -> bpy.types.Scene:
     """Fig. 7: a rough metal bust inside fire: a temperature grid (kelvin) with blackbody
     emission and a thin smoke (Color 2/3, Density 0.9: sigma_s 0.6, sigma_a 0.3) under a
     dimmed orange lamp."""
-    from addon.operators_volume import principled_volume_material
+    principled_volume_material = _volumes().principled_volume_material
     from examples.media_scenes import fire_temperature
 
     scene = cornell(size, MEDIA_BOUNCES, light_radiance=1.7, light_color=(1.0, 0.7, 0.24))
@@ -256,13 +265,14 @@ def cloud(size: int, folder: Path) -> bpy.types.Scene:
     """A cloud written as a pbrt-v3 'heterogeneous' medium and imported like Add > Volume >
     Density Grid does (Volume Scatter + Absorption reading its density), under a sun and a
     blue sky, over a grey ground."""
-    from addon.operators_volume import add_volume_object, coefficient_material
+    volumes = _volumes()
+    add_volume_object, coefficient_material = volumes.add_volume_object, volumes.coefficient_material
 
     scene = C.clear_scene()
     pbrt = folder / "cloud.pbrt"
-    write_pbrt(pbrt, cloud_density(), (-2.5, -1.9, 0.0), (2.5, 1.9, 2.2), sigma_a=(0.05, 0.05, 0.05),
+    _grids().write_pbrt(pbrt, cloud_density(), (-2.5, -1.9, 0.0), (2.5, 1.9, 2.2), sigma_a=(0.05, 0.05, 0.05),
                sigma_s=(6.0, 6.0, 6.0))
-    values, p0, p1 = read_pbrt(pbrt)
+    values, p0, p1 = _grids().read_pbrt(pbrt)
     material = coefficient_material("Cloud", (0.05, 0.05, 0.05), (6.0, 6.0, 6.0), 0.6)
     cloud_object = add_volume_object(bpy.context, "Cloud", values, p0, p1, material, folder)
     cloud_object.location = (0.0, 1.0, 0.9)

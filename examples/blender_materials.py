@@ -18,8 +18,8 @@ import numpy as np
 
 REPO = Path(__file__).resolve().parents[1]
 for _path in (REPO, REPO / "examples", REPO / "tests"):  # tests/bpy_helpers: shared builders
-    if str(_path) not in sys.path:
-        sys.path.insert(0, str(_path))
+    if str(_path) not in sys.path:  # appended: an installed Haze's renderer comes first
+        sys.path.append(str(_path))
 
 import blender_cornell as C  # noqa: E402
 import bpy_helpers as H  # noqa: E402

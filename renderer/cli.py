@@ -26,7 +26,8 @@ and exits with status 130.
 
 
 def _parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="python -m renderer", description="Haze volumetric path tracer")
+    invoked = "haze" if Path(sys.argv[0]).stem == "haze" else "python -m renderer"  # entry point or -m
+    p = argparse.ArgumentParser(prog=invoked, description="Haze volumetric path tracer")
     sub = p.add_subparsers(dest="command", required=True)
     r = sub.add_parser(
         "render",

@@ -332,7 +332,19 @@ def enable_addon():
         raise error
 
     addon_utils.enable(package.__name__, default_set=True, handle_error=fail)
+    _require_bundled_renderer()
     return package
+
+
+def _require_bundled_renderer() -> None:
+    """The installed mode's promise: `renderer` is the zip's wheel, never the checkout's (an
+    example that put the repository first on sys.path would break it silently)."""
+    import importlib.util
+
+    origin = Path(importlib.util.find_spec("renderer").origin).resolve()
+    bundled = Path(os.environ["BLENDER_USER_RESOURCES"]).resolve() / "extensions"
+    if not origin.is_relative_to(bundled):
+        raise RuntimeError(f"the renderer would be imported from {origin}, not from the installed extension")
 
 
 def configure_cycles(scene, samples: int, max_bounces: int, seed: int, threads: int = 2) -> None:

@@ -292,11 +292,11 @@ def haze_values(obj, material, emission, uv):
     """The exporter's program for the Emission's Color input, run where Cycles baked each
     texel: at the UV coordinates `uv` (K, 2) Cycles itself baked (its texel positions are
     not exactly the texel centres)."""
-    from addon.export.images import ImageLibrary
-    from addon.export.messages import Messages
-    from addon.export.nodes import ShaderGraph
-    from addon.export.object_info import object_info_values
-    from addon.export.world_program import WORLD_HANDLERS
+    ImageLibrary = H.addon_module("export.images").ImageLibrary
+    Messages = H.addon_module("export.messages").Messages
+    ShaderGraph = H.addon_module("export.nodes").ShaderGraph
+    object_info_values = H.addon_module("export.object_info").object_info_values
+    WORLD_HANDLERS = H.addon_module("export.world_program").WORLD_HANDLERS
     from renderer.scene import CornerAttribute, Lobe, Material, Mesh
     from renderer.shading.evaluate import evaluate_program
     from renderer.shading.table import build_shading_tables
