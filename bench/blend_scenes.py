@@ -1,6 +1,7 @@
 """Benchmark scenes built in Blender: the scene is built by examples/ (tools/blend_scene.py,
 in a bpy subprocess), saved as a .blend for Cycles and exported through the add-on for Haze,
-so both renderers see one artist's scene, textures and world included.
+so both renderers see one artist's scene, textures and world included. The export runs in
+the extension zip built from this checkout and installed (bench/installed.py).
 
 The export is cached under bench/cache/blend/, keyed by the scene's name, size and bounce
 limit and by the sources that shape it (the examples' builders and the add-on's exporter),
@@ -19,7 +20,8 @@ from renderer.scene import Scene
 REPO = Path(__file__).resolve().parents[1]
 CACHE = REPO / "bench" / "cache" / "blend"
 TOOL = REPO / "tools" / "blend_scene.py"
-SOURCES = ("examples/*.py", "addon/export/*.py", "tools/blend_scene.py", "tests/bpy_helpers.py")
+SOURCES = ("examples/*.py", "addon/**/*.py", "renderer/**/*.py", "tools/blend_scene.py",
+           "tests/bpy_helpers.py", "bench/installed.py")  # the zip that exports is built from these
 
 
 def _sources_digest() -> str:

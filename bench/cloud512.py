@@ -4,7 +4,8 @@ Issue 18's closing benchmark. A .vdb cloud in a 512^3 index box (a noisy cumulus
 18 M active voxels, written once with Blender's openvdb module and cached under DIR,
 default ~/.cache/haze-bench, never in git), a .blend with a Volume object loading it
 (Principled Volume, a sun and a grey sky, 96x96), rendered with Cycles and with Haze (the
-add-on of this checkout) at 4 samples per pixel, each in a fresh Python process with bpy.
+extension zip built from this checkout and installed, as users get it; bench/installed.py)
+at 4 samples per pixel, each in a fresh Python process with bpy.
 Haze renders once first to fill its kernel cache (not measured), then both are measured.
 
 Reported per renderer: time to first image (process start to the written EXR: bpy
@@ -26,15 +27,17 @@ from pathlib import Path
 
 import numpy as np
 
+from bench.installed import blender_environment
+
 REPO = Path(__file__).resolve().parents[1]
 N = 512
 RADIUS = 0.34  # of the box: about 18 M voxels above the threshold with the noise below
 
 WRITE = r'''
 import sys, numpy as np
-sys.path.insert(0, {repo!r})
-from addon.volume_grids import import_openvdb
-vdb = import_openvdb()
+import bpy
+sys.path.append(bpy.utils.resource_path("LOCAL") + "/python/lib/python3.11/site-packages")
+import openvdb as vdb  # Blender's own OpenVDB module
 n, radius = {n}, {radius}
 rng = np.random.default_rng(18)
 coarse = rng.random((17, 17, 17))  # value noise: trilinear on a 16-cell lattice
@@ -118,12 +121,12 @@ bpy.ops.wm.save_as_mainfile(filepath={blend!r})
 
 RENDER = r'''
 import sys, bpy
-sys.path.insert(0, {repo!r})
+sys.path.append({repo!r})  # appended: the installed extension's renderer comes first
 bpy.ops.wm.open_mainfile(filepath={blend!r})
 scene = bpy.context.scene
 if {engine!r} == "HAZE":
-    import addon
-    addon.register()
+    from bench.installed import enable_installed
+    enable_installed()  # Haze as users get it: the extension zip, installed
     scene.render.engine = "HAZE"
     scene.haze.samples = {spp}
     scene.haze.max_bounces = 8
@@ -211,8 +214,7 @@ def main(argv: list[str]) -> int:
     env = dict(os.environ)
     if not vdb.exists():
         t = time.perf_counter()
-        done = subprocess.run([sys.executable, "-c", WRITE.format(repo=str(REPO), n=args.n, radius=RADIUS,
-                                                                   path=str(vdb))],
+        done = subprocess.run([sys.executable, "-c", WRITE.format(n=args.n, radius=RADIUS, path=str(vdb))],
                               env=env, capture_output=True, text=True)
         if done.returncode != 0:
             print(done.stdout[-2000:], done.stderr[-3000:])
@@ -224,6 +226,7 @@ def main(argv: list[str]) -> int:
                        env=env, check=True, capture_output=True)
     results = {}
     with tempfile.TemporaryDirectory(prefix="haze-cloud512-") as tmp:
+        env = blender_environment(Path(tmp) / "blender_user", env)  # Haze from the installed zip
         for label, engine in (("haze (cache fill)", "HAZE"), ("cycles", "CYCLES"), ("haze", "HAZE")):
             out = Path(tmp) / f"{engine.lower()}.exr"
             code = RENDER.format(repo=str(REPO), blend=str(blend), engine=engine, spp=args.spp, out=str(out))

@@ -145,3 +145,30 @@ def copy_install(template: Path, user: Path) -> Path:
         shutil.copytree(template / "extensions", user / "extensions", symlinks=True,
                         copy_function=_link_or_copy)
     return user
+
+
+def blender_environment(user: Path, base: dict[str, str] | None = None) -> dict[str, str]:
+    """Environment of a Blender process that runs Haze from the installed zip: `user` (made
+    here, with its own copy of the install) as BLENDER_USER_RESOURCES, no PYTHONPATH."""
+    copy_install(installed_user_folder(), user)
+    env = {k: v for k, v in (base if base is not None else os.environ).items() if k != "PYTHONPATH"}
+    env["BLENDER_USER_RESOURCES"] = str(user)
+    return env
+
+
+def enable_installed():
+    """Blender side: enable the installed extension as a user does and return its package,
+    after checking that `renderer` is its bundled wheel (not a checkout on sys.path)."""
+    import importlib.util
+
+    import addon_utils
+
+    def fail(error):
+        raise error
+
+    package = addon_utils.enable(PACKAGE, default_set=True, handle_error=fail)
+    origin = Path(importlib.util.find_spec("renderer").origin).resolve()
+    extensions = Path(os.environ["BLENDER_USER_RESOURCES"]).resolve() / "extensions"
+    if not origin.is_relative_to(extensions):
+        raise RuntimeError(f"renderer would come from {origin}, not from the installed extension")
+    return package

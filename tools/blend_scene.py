@@ -6,21 +6,39 @@ NAME is a scene of examples/blender_gallery.py (textured_box, hdri, smoke_ball, 
 OUT_DIR/scene.blend (what Cycles renders: tools/cycles_reference.py takes a .blend too) and
 OUT_DIR/scene/ (the same scene through the add-on's exporter, what Haze renders), so the
 convergence benchmark (bench/blend_scenes.py) compares both renderers on one Blender scene
-whose materials Haze evaluates per shading point. Runs with private Blender user folders.
+whose materials Haze evaluates per shading point. Runs with private Blender user folders, the
+export done by the installed extension zip.
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import sys
+import tempfile
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
-for _path in (REPO, REPO / "tests", REPO / "examples", REPO / "tools"):
-    if str(_path) not in sys.path:
-        sys.path.insert(0, str(_path))
+for _path in (REPO, REPO / "tests", REPO / "examples"):
+    if str(_path) not in sys.path:  # appended: the installed extension's renderer comes first
+        sys.path.append(str(_path))
 
-from cycles_reference import isolate_blender  # noqa: E402
+ISOLATED = "HAZE_BLEND_SCENE_ISOLATED"
+
+
+def isolate_blender() -> None:
+    """Re-run this script with private HOME / Blender user folders, the extension zip of this
+    checkout installed in the latter (bench/installed.py): Haze as users get it."""
+    if os.environ.get(ISOLATED):
+        return
+    from bpy_helpers import blender_environment as private_folders
+
+    from bench.installed import blender_environment
+
+    env = private_folders(Path(tempfile.mkdtemp(prefix="haze-blend-scene-")), None)
+    env = blender_environment(Path(env["BLENDER_USER_RESOURCES"]), env)
+    env[ISOLATED] = "1"
+    os.execve(sys.executable, [sys.executable, __file__, *sys.argv[1:]], env)
 
 
 def parse_arguments(argv: list[str]) -> argparse.Namespace:
@@ -33,13 +51,14 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
 
 
 def main(argv: list[str]) -> int:
-    isolate_blender(__file__)
+    isolate_blender()
     arguments = parse_arguments(argv)
     import blender_gallery as G
     import bpy
-    from bpy_helpers import enable_dev_addon
 
-    enable_dev_addon()
+    from bench.installed import enable_installed
+
+    enable_installed()
     out = arguments.out.resolve()
     (out / "assets").mkdir(parents=True, exist_ok=True)
     scene = G.build(arguments.name, arguments.size, out / "assets")

@@ -25,8 +25,9 @@ What is measured, per scene; cold = an empty kernel cache, warm = the same cache
 * F12: a Python subprocess with bpy (Blender as a module) in a fresh user folder (HOME,
   BLENDER_USER_RESOURCES, XDG_CACHE_HOME, XDG_CONFIG_HOME: new empty folders) and a fresh
   empty HAZE_CACHE_DIR, HAZE_BACKGROUND_COMPILE=0 (no compile at enable: the render compiles
-  what it needs, as in a script). It registers the add-on of this checkout, builds the scene
-  with bpy.data, sets Haze with 1 sample per pixel and the default workers, and times
+  what it needs, as in a script). It enables the extension zip built from this checkout and
+  installed in that user folder (bench/installed.py), builds the scene with bpy.data, sets
+  Haze with 1 sample per pixel and the default workers, and times
   `bpy.ops.render.render(write_still=True)`: the time to the finished 1-spp render (scene
   export and kernel compile included; writing a 128x128 EXR adds milliseconds). Warm: a
   second subprocess with the same folders and cache. The renderer (numba) is not imported
@@ -57,6 +58,9 @@ from datetime import UTC, datetime
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO))
+from bench.installed import blender_environment  # noqa: E402
+
 SCENES = ("surface", "fog", "smoke")
 DEFAULT_TIMEOUT = 900.0
 # The CLI's progress bar, printed after every pass (renderer/cli.py _bar).
@@ -75,8 +79,8 @@ import time
 started = time.perf_counter()
 repo, kind, size, folder, result_path = sys.argv[1], sys.argv[2], int(sys.argv[3]), sys.argv[4], sys.argv[5]
 for path in (repo + "/examples", repo):
-    if path not in sys.path:
-        sys.path.insert(0, path)
+    if path not in sys.path:  # appended: the installed extension's renderer comes first
+        sys.path.append(path)
 
 import math  # noqa: E402
 from pathlib import Path  # noqa: E402
@@ -85,11 +89,13 @@ import bpy  # noqa: E402
 
 import blender_cornell as C  # noqa: E402
 import blender_gallery as G  # noqa: E402
-import addon  # noqa: E402
+import addon_utils  # noqa: E402
+
+from bench.installed import PACKAGE, enable_installed  # noqa: E402
 
 result = {"kind": kind}
 t = time.perf_counter()
-addon.register()
+enable_installed()  # the extension zip installed in this user folder, as users get it
 result["register_seconds"] = time.perf_counter() - t
 
 
@@ -127,7 +133,7 @@ result["f12_seconds"] = time.perf_counter() - t
 result["image_written"] = exr.is_file()
 result["seconds_before_render"] = t - started
 t = time.perf_counter()
-addon.unregister()  # stops the persistent render workers
+addon_utils.disable(PACKAGE, default_set=True)  # stops the persistent render workers
 result["unregister_seconds"] = time.perf_counter() - t
 with open(result_path, "w") as file:
     json.dump(result, file)
@@ -290,8 +296,8 @@ def run_f12(name: str, cache_state: str, user: Path, cache: Path, work: Path, si
     home, resources = user / "home", user / "blender_user"
     for path in (home, resources):
         path.mkdir(parents=True, exist_ok=True)
-    env.update(HOME=str(home), BLENDER_USER_RESOURCES=str(resources), XDG_CACHE_HOME=str(home / ".cache"),
-               XDG_CONFIG_HOME=str(home / ".config"))
+    env.update(HOME=str(home), XDG_CACHE_HOME=str(home / ".cache"), XDG_CONFIG_HOME=str(home / ".config"))
+    env = blender_environment(resources, env)  # the extension zip of this checkout, installed there
     command = [sys.executable, str(script), str(REPO), name, str(size), str(folder), str(result_path)]
     streamed = run_streaming(command, env, folder, timeout)
     result = json.loads(result_path.read_text()) if result_path.is_file() else {}

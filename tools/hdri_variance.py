@@ -51,7 +51,7 @@ CONFIGURE = {"cycles": H.configure_cycles, "haze": H.configure_haze}
 
 
 def main():
-    H.enable_dev_addon()
+    H.enable_addon()
     seconds = {}
     for projection in PROJECTIONS:
         folder = f"{OUT}/{projection}"

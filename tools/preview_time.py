@@ -49,7 +49,7 @@ import time
 import bpy
 import bpy_helpers as H
 import blender_cornell as C
-import addon.session as session
+session = H.addon_module("session")
 
 REPEATS = {repeats}
 PROFILE = {profile}
@@ -78,7 +78,7 @@ def volume_material():
 
 
 def main():
-    H.enable_dev_addon()
+    H.enable_addon()
     scene = C.clear_scene()
     scene.render.engine = "HAZE"
     scene.haze.workers = {workers}
