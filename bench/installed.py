@@ -141,9 +141,10 @@ def copy_install(template: Path, user: Path) -> Path:
     render may disable the extension, and Blender then deletes its bundled wheels. Returns
     `user`."""
     user.mkdir(parents=True, exist_ok=True)
-    if not (user / "extensions").exists():
-        shutil.copytree(template / "extensions", user / "extensions", symlinks=True,
-                        copy_function=_link_or_copy)
+    with _locked():  # two processes may share one user folder
+        if not (user / "extensions").exists():
+            shutil.copytree(template / "extensions", user / "extensions", symlinks=True,
+                            copy_function=_link_or_copy)
     return user
 
 

@@ -156,11 +156,11 @@ def run_blender(body: str, tmp: Path, *, timeout: float = 900.0, numba_cache: Pa
     result_file = tmp / "result.json"
     extra = env or {}
     env = blender_environment(tmp, numba_cache)
-    if mode == "installed":
+    env.update(extra, HAZE_TEST_RESULT=str(result_file), **{ADDON_MODE_ENV: mode})
+    if mode == "installed":  # into the user folder the run really uses (a test may share one)
         from bench.installed import copy_install, installed_user_folder
 
         copy_install(installed_user_folder(), Path(env["BLENDER_USER_RESOURCES"]))
-    env.update(extra, HAZE_TEST_RESULT=str(result_file), **{ADDON_MODE_ENV: mode})
     command = [PYTHON, "-S", str(script)] if site is not None else [PYTHON, str(script)]
     process = subprocess.run(command, cwd=tmp, env=env, capture_output=True, text=True, timeout=timeout)
     result = json.loads(result_file.read_text()) if result_file.is_file() else {}
