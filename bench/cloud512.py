@@ -148,9 +148,10 @@ bpy.ops.render.render(write_still=True)
 '''
 
 
-def _python(code: str, env: dict[str, str]) -> subprocess.Popen:
+def _python(code: str, env: dict[str, str], cwd: Path) -> subprocess.Popen:
+    """`python -c code` in `cwd`: not the checkout, whose renderer/ would come first on sys.path."""
     return subprocess.Popen([sys.executable, "-c", code], env=env, stdout=subprocess.PIPE,
-                            stderr=subprocess.STDOUT, text=True)
+                            stderr=subprocess.STDOUT, text=True, cwd=cwd)
 
 
 def _tree_memory(pid: int) -> dict[str, tuple[int, int]]:
@@ -180,7 +181,7 @@ def measure(code: str, env: dict[str, str], out: Path) -> dict[str, float]:
     each process's RSS and PSS at the tree's PSS peak, in "at_peak")."""
     out.unlink(missing_ok=True)
     start = time.perf_counter()
-    process = _python(code, env)
+    process = _python(code, env, out.parent)
     peak_rss = peak_pss = 0
     at_peak: dict[str, tuple[int, int]] = {}
     first = None
