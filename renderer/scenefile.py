@@ -22,7 +22,11 @@ from typing import Any
 
 import numpy as np
 
-from renderer.conform import (
+from renderer.errors import SceneError
+from renderer.scene import LIGHT_TYPES, SCENE_FORMAT_VERSION, Scene
+from renderer.validate import validate_scene
+from renderer.validate.checks import check_choice
+from renderer.validate.conform import (
     ARRAY_DTYPES,
     MATRIX_FIELDS,
     conform,
@@ -33,9 +37,6 @@ from renderer.conform import (
     show,
     split_optional,
 )
-from renderer.errors import SceneError
-from renderer.scene import LIGHT_TYPES, SCENE_FORMAT_VERSION, Scene
-from renderer.validate import check_choice, validate_scene
 
 SCENE_FILE = "scene.json"
 ARRAY_DIR = "arrays"

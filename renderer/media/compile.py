@@ -2,7 +2,7 @@
 
 build_media_data() gives the immutable MediaData a compiled scene keeps; compile_media()
 adds a fresh walker scratch, for callers that run the media kernels directly (tests, tools).
-Every medium is validated first (renderer.validate_media.validate_medium), so the kernels never
+Every medium is validated first (renderer.validate.validate_medium), so the kernels never
 see a bad grid or transform even when the scene skipped validate_scene.
 """
 
@@ -35,7 +35,7 @@ from renderer.media.layout import (
 )
 from renderer.media.procedural import PROC_CELLS, build_program_tables, check_program, density_bounds
 from renderer.scene import MEDIUM_TYPES, Medium
-from renderer.validate_media import validate_medium
+from renderer.validate import validate_medium
 
 # Majorant cells aim at MAJ_VOXELS voxels per axis, capped at MAJ_MAX_CELLS per axis: small
 # cells bound sparse data tightly, and a 64^3 cap keeps the DDA walk short.

@@ -1,5 +1,5 @@
-"""The checks every part of the scene validator shares (renderer.validate,
-renderer.validate_media): a choice among words, a non-negative colour, magnitudes and
+"""The checks every part of the scene validator shares (renderer.validate.scene,
+renderer.validate.media): a choice among words, a non-negative colour, magnitudes and
 coordinates the float32 kernels hold, directions, references by name, unique names and
 invertible transforms. Each raises SceneError naming the field path it was given.
 """
@@ -10,8 +10,8 @@ from collections.abc import Collection
 
 import numpy as np
 
-from renderer.conform import require
 from renderer.errors import SceneError
+from renderer.validate.conform import require
 
 # Relative singularity threshold, see is_singular.
 _SINGULAR_TOLERANCE = 1e-12

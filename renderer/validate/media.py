@@ -7,7 +7,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from renderer.checks import (
+from renderer.scene import MEDIUM_TYPES, Medium
+from renderer.validate.checks import (
     check_choice,
     check_coordinates,
     check_magnitude,
@@ -16,8 +17,7 @@ from renderer.checks import (
     check_transform_range,
     is_singular,
 )
-from renderer.conform import conform_object, require
-from renderer.scene import MEDIUM_TYPES, Medium
+from renderer.validate.conform import conform_object, require
 
 GRID_ARRAYS = ("density", "flame", "temperature")
 # Stefan-Boltzmann radiance scaled as Cycles does (renderer/media/blackbody.py): times T^4.

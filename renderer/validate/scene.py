@@ -1,14 +1,9 @@
-"""The scene validator: everything any Scene can get wrong, in-memory or loaded from a file.
+"""The validator's checks of a whole Scene: camera, film, integrator, materials and lobes,
+meshes, lights, environment, names and references, and how far a path can grow.
 
-`validate_scene` conforms every field to its annotation (renderer.conform) and checks what
-types cannot say: value ranges, the vocabulary of renderer.scene, unique names and the
-references between objects, array shapes and index ranges, invertible transforms. The
-compilers downstream rely on it; the medium and lobe checks are also called on their own
-by the table builders (validate_medium, validate_material), the one copy of each rule. Every
-problem is a SceneError whose message starts with the field path, e.g. `meshes[2].vertices`.
-
-The checks shared by every part are in renderer.checks; a medium's are in
-renderer.validate_media (validate_medium is re-exported here).
+`validate_scene` (exported by renderer.validate) conforms every field to its annotation
+(renderer.validate.conform) and checks what types cannot say; a medium's checks are in
+renderer.validate.media, the checks every part shares in renderer.validate.checks.
 """
 
 from __future__ import annotations
@@ -17,18 +12,6 @@ from typing import Any
 
 import numpy as np
 
-from renderer.checks import (
-    MAX_MAGNITUDE,
-    check_choice,
-    check_coordinates,
-    check_direction,
-    check_magnitude,
-    check_nonnegative_rgb,
-    check_reference,
-    check_transform,
-    check_unique_names,
-)
-from renderer.conform import conform_object, require
 from renderer.errors import SceneError
 from renderer.scene import (
     CONDUCTOR_KINDS,
@@ -54,7 +37,19 @@ from renderer.scene import (
     SpotLight,
     SunLight,
 )
-from renderer.validate_media import check_medium, validate_medium  # noqa: F401 - re-exported
+from renderer.validate.checks import (
+    MAX_MAGNITUDE,
+    check_choice,
+    check_coordinates,
+    check_direction,
+    check_magnitude,
+    check_nonnegative_rgb,
+    check_reference,
+    check_transform,
+    check_unique_names,
+)
+from renderer.validate.conform import conform_object, require
+from renderer.validate.media import check_medium
 
 MAX_FILM_SIDE = 16384
 MIN_BATCH_SIZE, MAX_BATCH_SIZE = 1024, 1 << 22
