@@ -18,27 +18,18 @@ call); its worker finishes it and drops the result.
 
 from __future__ import annotations
 
-import heapq
 import math
 import queue
 import time
 from collections.abc import Iterator
+from contextlib import contextmanager
 from typing import TYPE_CHECKING
 
 from .cluster_tasks import remote_task
 from .film import Film
-from .progress import (
-    STOP_GRACE,
-    Clock,
-    Pacer,
-    Progress,
-    UnitMerger,
-    announce_compile,
-    progress_now,
-    target_reached,
-)
+from .schedule import Schedule
+from .shipment import scene_payload
 from .units import Unit
-from .workers import scene_payload
 
 if TYPE_CHECKING:
     from distributed import Client, Future
@@ -50,80 +41,52 @@ IN_FLIGHT_PER_THREAD = 2  # one tracing, one queued beside it
 THREADS_REFRESH = 1.0  # seconds between looks at the cluster's size
 
 
-class ClusterRender:
-    """Hand units to the cluster, merge their films in unit order, enforce the stops."""
+class ClusterRender(Schedule):
+    """Hand units to the cluster, merge their films in unit order, enforce the stops: the
+    cluster back-end of the scheduler loop (renderer.schedule)."""
+
+    MAX_WAIT = THREADS_REFRESH  # the loop looks at the cluster's size between waits
 
     def __init__(self, client: Client, cs: CompiledScene, settings: IntegratorSettings, film: Film,
                  units: Iterator[Unit], t0: float, target_error: float, on_compile):
-        self.client, self.cs, self.settings, self.film, self.t0 = client, cs, settings, film, t0
-        self.fresh = units
-        self.retry: list[Unit] = []  # a heap: units to submit again, before any fresh one
-        self.target_error = target_error
-        self.on_compile = on_compile or announce_compile
-        self.announced = False
+        super().__init__(settings, film, units, t0, target_error, on_compile)
+        self.client, self.cs = client, cs
         self.compiling: set[str] = set()  # workers compiling kernels (the clock pauses)
-        self.merger = UnitMerger(film)
-        self.clock = Clock(settings, t0)
-        self.pacer = Pacer()
         self.in_flight: dict[str, tuple[Future, Unit]] = {}  # by task key
         self.finished: queue.Queue = queue.Queue()  # ("done", key) or ("event", message)
         self.threads, self.threads_seen_at = 1, -math.inf
-        self.stop_at = math.inf
-        self.target_met = False
         self.task = remote_task()
-        self.note = ""
+        self.key, self.scene = "", None
 
-    def frames(self) -> Iterator[Progress]:
+    @contextmanager
+    def _opened(self) -> Iterator[None]:
         from .cluster_tasks import TOPIC
 
-        key, payload = scene_payload(self.cs, self.settings)
-        scene = self.client.scatter(payload, broadcast=True, hash=False)
+        self.key, payload = scene_payload(self.cs, self.settings)
+        self.scene = self.client.scatter(payload, broadcast=True, hash=False)
         self.client.subscribe_topic(TOPIC, lambda event: self.finished.put(("event", event[1])))
         try:
-            yield from self._run(key, scene)
-        except KeyboardInterrupt:
-            # Show the finished units before the interrupt goes on to the caller.
-            self._cancel()
-            if self._collect(0.0) | self.merger.merge_the_rest() or self.pacer.pending:
-                yield self.progress_now()
-            raise
-        finally:
-            self._cancel()  # closed by the caller (Esc in Blender), an error, or done
+            yield
+        finally:  # after Schedule.frames cancelled the units not finished
             self.client.unsubscribe_topic(TOPIC)
-            scene.release()
+            self.scene.release()
 
-    def _run(self, key: str, scene: Future) -> Iterator[Progress]:
-        while True:
-            if self._stopping():
-                self.stop_at = min(self.stop_at, time.perf_counter() + STOP_GRACE)
-            else:
-                self._submit(key, scene)
-            if not self.in_flight:
-                break
-            if time.perf_counter() >= self.stop_at:
-                if self.film.spp == 0 and not self.merger.waiting and not self.note:
-                    self.note = "the time limit passed before the first samples were done"
-                break
-            if self._collect(self._wait_time()) and self.pacer.merged():
-                # Checked when shown: the estimate reads the whole image.
-                self.target_met = target_reached(self.film, self.target_error)
-                yield self.progress_now()
+    def _busy(self) -> bool:
+        return bool(self.in_flight)
+
+    def _finish(self) -> bool:
         merged = self._collect(0.0)  # units that finished in the grace period are kept
         self._cancel()
-        if merged | self.merger.merge_the_rest() or self.pacer.pending or self.note or not self.pacer.shown:
-            yield self.progress_now()
+        return merged
 
-    def _stopping(self) -> bool:
-        return bool(self.note) or self.target_met or self.clock.left() <= 0
-
-    def _submit(self, key: str, scene: Future) -> None:
+    def _submit(self) -> None:
         while len(self.in_flight) < IN_FLIGHT_PER_THREAD * self._threads():
-            unit = heapq.heappop(self.retry) if self.retry else next(self.fresh, None)
+            unit = self._next_unit()
             if unit is None:
                 return
             # Higher priority runs first: the earliest unit, so merges are never held up long.
-            future = self.client.submit(self.task, key, scene, tuple(unit), self.settings.seed, pure=False,
-                                        priority=-unit.index)
+            future = self.client.submit(self.task, self.key, self.scene, tuple(unit), self.settings.seed,
+                                        pure=False, priority=-unit.index)
             self._track(future, unit)
 
     def _track(self, future: Future, unit: Unit) -> None:
@@ -136,9 +99,6 @@ class ClusterRender:
             self.threads = max(1, sum(self.client.nthreads().values()))
             self.threads_seen_at = time.perf_counter()
         return self.threads
-
-    def _wait_time(self) -> float:
-        return max(0.0, min(self.clock.left(), self.stop_at - time.perf_counter(), THREADS_REFRESH))
 
     def _collect(self, timeout: float) -> bool:
         """Handle what has finished (waiting up to `timeout` for the first); True if merged."""
@@ -162,7 +122,7 @@ class ClusterRender:
         if future.status == "finished":
             return self.merger.add(unit.index, future.result())  # waits if its worker died since
         if future.status == "cancelled":  # e.g. the scene's data was lost with every holder
-            heapq.heappush(self.retry, unit)
+            self._retry(unit)
             return False
         if future.status != "error":  # its result was lost with its worker: Dask traces it again
             self._track(future, unit)
@@ -179,9 +139,7 @@ class ClusterRender:
         worker, what = message[0], message[1]
         if what == "compile":
             self.compiling.add(worker)
-            if not self.announced:
-                self.announced = True
-                self.on_compile(message[2])
+            self._announce(message[2])
         else:
             self.compiling.discard(worker)
         self.clock.pause(bool(self.compiling))
@@ -193,6 +151,3 @@ class ClusterRender:
             del self.in_flight[key]
         if pending:
             self.client.cancel(pending)
-
-    def progress_now(self) -> Progress:
-        return progress_now(self.film, self.settings, self.t0, self.note)

@@ -34,11 +34,10 @@ kernel; the command line always uses the pool.
 
 from __future__ import annotations
 
-import heapq
-import math
 import os
 import time
 from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 
 import numpy as np
 
@@ -46,28 +45,12 @@ from .compile import CompiledScene, compile_scene
 from .film import Film
 from .integrator.wavefront import Tracer
 from .memory import release_free_memory
-from .progress import (
-    STOP_GRACE,
-    Clock,
-    Pacer,
-    Progress,
-    UnitMerger,
-    announce_compile,
-    progress_now,
-    target_reached,
-)
+from .progress import STOP_GRACE, Pacer, Progress, progress_now, target_reached
 from .scene import IntegratorSettings, Scene
+from .schedule import Schedule
+from .shipment import Shipment, shipped
 from .units import Unit, iter_units, plan_units, trace_unit
-from .workers import (
-    Shipment,
-    Worker,
-    borrowed_pool,
-    pool,
-    shipped,
-    shutdown_workers,
-    start_workers,
-    worker_pids,
-)
+from .workers import Worker, borrowed_pool, pool, shutdown_workers, start_workers, worker_pids
 
 __all__ = ["Progress", "Unit", "default_workers", "iter_units", "plan_units", "render", "render_progressive",
            "shutdown_workers", "start_workers", "worker_pids"]
@@ -145,43 +128,27 @@ def _render_here(cs: CompiledScene, settings: IntegratorSettings, film: Film, un
         yield progress_now(film, settings, t0)
 
 
-class _PoolRender:
-    """One render on the persistent pool: hand out units, merge results, enforce the stops."""
+class _PoolRender(Schedule):
+    """One render on the persistent pool (renderer.workers): the local back-end of the
+    scheduler loop (renderer.schedule)."""
 
     def __init__(self, cs: CompiledScene, settings: IntegratorSettings, film: Film, units: Iterator[Unit],
                  t0: float, target_error: float, workers: int, on_compile):
-        self.cs, self.settings, self.film, self.t0 = cs, settings, film, t0
-        self.fresh = units
-        self.retry: list[Unit] = []  # a heap: units whose worker died, before any fresh one
-        self.target_error = target_error
+        super().__init__(settings, film, units, t0, target_error, on_compile)
+        self.cs = cs
         self.workers = workers
         self.heard_from_a_worker = False  # see _pool_size
-        self.on_compile = on_compile or announce_compile
-        self.announced = False
-        self.merger = UnitMerger(film)
-        self.clock = Clock(settings, t0)
         self.attempts: dict[int, int] = {}
-        self.stop_at = math.inf  # when units still in flight are given up
-        self.note = ""
-        self.pacer = Pacer()
-        self.target_met = False
-        self.pool = pool  # the shared workers; frames() borrows them
+        self.pool = pool  # the shared workers; _opened borrows them
+        self.shipment: Shipment | None = None
 
-    def frames(self) -> Iterator[Progress]:
-        with borrowed_pool() as self.pool, shipped(self.cs, self.settings) as shipment:
-            try:
-                yield from self._run(shipment)
-            except KeyboardInterrupt:
-                # Show the finished units before the interrupt goes on to the caller.
-                self.pool.terminate_busy()
-                if self.merger.merge_the_rest() or self.pacer.pending:
-                    yield self.progress_now()
-                raise
-            except GeneratorExit:  # closed by the caller (Esc in Blender): no more images
-                self.pool.drain(STOP_GRACE)
-                raise
-            finally:
-                self.pool.terminate_busy()  # a cancelled render leaves no unit in flight
+    @contextmanager
+    def _opened(self) -> Iterator[None]:
+        with borrowed_pool() as self.pool, shipped(self.cs, self.settings) as self.shipment:
+            yield
+
+    def _start(self) -> None:
+        self.pool.resize(self._pool_size())
 
     def _pool_size(self) -> int:
         """Workers wanted now. A pool that must start processes starts one, and the others
@@ -192,43 +159,26 @@ class _PoolRender:
             return self.workers
         return max(1, len(self.pool.workers))
 
-    def _run(self, shipment: Shipment) -> Iterator[Progress]:
-        self.pool.resize(self._pool_size())
-        while True:
-            if self._stopping():
-                self.stop_at = min(self.stop_at, time.perf_counter() + STOP_GRACE)
-            else:
-                self._hand_out(shipment)
-            if not self.pool.busy():
-                break
-            if time.perf_counter() >= self.stop_at:
-                self._give_up_units_in_flight()
-                break
-            if self._handle(self.pool.events(self._wait_time())) and self.pacer.merged():
-                # Checked when shown: the estimate reads the whole image.
-                self.target_met = target_reached(self.film, self.target_error)
-                yield self.progress_now()
-        # The pool is refilled by the next render (lazily: an exiting CLI must not wait for
-        # new processes to start).
-        if self.merger.merge_the_rest() or self.pacer.pending or self.note or not self.pacer.shown:
-            yield self.progress_now()
+    def _busy(self) -> bool:
+        return bool(self.pool.busy())
 
-    def _give_up_units_in_flight(self) -> None:
-        if self.film.spp == 0 and not self.merger.waiting and not self.note:
-            self.note = "the time limit passed before the first samples were done"
+    def _cancel(self) -> None:
         self.pool.terminate_busy()
 
-    def _stopping(self) -> bool:
-        return bool(self.note) or self.target_met or self.clock.left() <= 0
+    def _drain(self) -> None:
+        self.pool.drain(STOP_GRACE)
 
-    def _hand_out(self, shipment: Shipment) -> None:
+    # The pool is refilled by the next render (lazily: an exiting CLI must not wait for new
+    # processes to start), so _finish only stops the units given up (Schedule._finish).
+
+    def _submit(self) -> None:
         self.pool.resize(self._pool_size())  # also replaces idle workers that died (killed, out of memory)
         for worker in self.pool.idle():
-            unit = heapq.heappop(self.retry) if self.retry else next(self.fresh, None)
+            unit = self._next_unit()
             if unit is None:
-                self._warm_idle(shipment)
+                self._warm_idle(self.shipment)
                 return
-            worker.send(shipment, unit, self.settings.seed)
+            worker.send(self.shipment, unit, self.settings.seed)
 
     def _warm_idle(self, shipment: Shipment) -> None:
         """Workers left without a unit while another compiles load the scene's tracer all the
@@ -241,8 +191,10 @@ class _PoolRender:
             if worker.scene_key != shipment.key:
                 worker.warm(shipment)
 
-    def _wait_time(self) -> float:
-        return min(self.clock.left(), self.stop_at - time.perf_counter(), 3600.0)
+    def _collect(self, timeout: float) -> bool:
+        if not self.pool.busy():  # nothing in flight (e.g. after a Ctrl-C terminated them)
+            return False
+        return self._handle(self.pool.events(timeout))
 
     def _handle(self, events: list[tuple[Worker, tuple | None]]) -> bool:
         """Act on the workers' messages; True if the film changed."""
@@ -266,9 +218,8 @@ class _PoolRender:
 
     def _compiling(self, worker: Worker, compiling: bool, names: list[str] | None = None) -> None:
         worker.compiling = compiling
-        if names and not self.announced:
-            self.announced = True
-            self.on_compile(names)
+        if names:
+            self._announce(names)
         self.clock.pause(any(w.compiling for w in self.pool.workers))
 
     def _lost(self, worker: Worker) -> None:
@@ -285,10 +236,7 @@ class _PoolRender:
             self.note = (f"worker processes died {MAX_ATTEMPTS} times tracing {unit.describe()} (last exit"
                          f" code {code}); stopped with the samples done")
             return
-        heapq.heappush(self.retry, unit)
-
-    def progress_now(self) -> Progress:
-        return progress_now(self.film, self.settings, self.t0, self.note)
+        self._retry(unit)
 
 
 def render(scene: Scene, workers: int = 1) -> np.ndarray:

@@ -13,10 +13,11 @@ import os
 import numpy as np
 import pytest
 
-from renderer import mapped, workers
+from renderer import mapped
 from renderer.media import bricks
 from renderer.media.bricks import sparse_from_dense
 from renderer.scene import IntegratorSettings
+from renderer.shipment import load_shipment, shipped
 
 
 @pytest.fixture
@@ -82,11 +83,11 @@ def test_a_shipment_names_the_mapped_file_and_its_key_follows_the_contents(small
         return {"grid": grid.zero_led().reshape(-1), "other": np.arange(5.0)}
 
     first, again, other = scene(3), scene(3), scene(4)
-    with workers.shipped(first, settings) as a, workers.shipped(again, settings) as b, \
-            workers.shipped(other, settings) as c:
+    with shipped(first, settings) as a, shipped(again, settings) as b, \
+            shipped(other, settings) as c:
         assert a.key == b.key != c.key
         assert os.path.getsize(a.path) < first["grid"].nbytes // 4
-        loaded, _ = workers.load_shipment(a.path)
+        loaded, _ = load_shipment(a.path)
         np.testing.assert_array_equal(loaded["grid"], first["grid"])
         np.testing.assert_array_equal(loaded["other"], first["other"])
         theirs = loaded["grid"]

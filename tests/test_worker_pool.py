@@ -116,13 +116,13 @@ def test_a_worker_builds_its_tracer_once_per_scene(tmp_path):
     """The worker loop, run here: two units of one scene, then one of another, then stop."""
     from multiprocessing import Pipe
 
-    from renderer import workers
+    from renderer.shipment import shipped
 
     parent, child = Pipe()
     scenes = [cornell_box(size=8, spp=2), cornell_box(size=8, spp=2)]
     scenes[1].materials[0].lobes[0].color = (0.5, 0.5, 0.5)  # another scene: another key
-    with workers.shipped(compile_scene(scenes[0]), scenes[0].integrator) as first, \
-            workers.shipped(compile_scene(scenes[1]), scenes[1].integrator) as second:
+    with shipped(compile_scene(scenes[0]), scenes[0].integrator) as first, \
+            shipped(compile_scene(scenes[1]), scenes[1].integrator) as second:
         assert first.key != second.key
         units = plan_units(8, 8, 2)
         for shipment, unit in [(first, units[0]), (first, units[1]), (second, units[0])]:
@@ -148,14 +148,14 @@ def test_a_shipment_maps_its_arrays_and_its_key_covers_them():
     """Workers get the scene's arrays as views of one copy-on-write map of the shipment file
     (one copy per machine, issue 18 item 3), writable and aligned as the parent's were (so the
     kernels' types, and cache entries, are the same); the key hashes the arrays too."""
-    from renderer import workers
+    from renderer.shipment import load_shipment, shipped
 
     scene = _smoke(2.0)
     cs = compile_scene(scene)
-    with workers.shipped(cs, scene.integrator) as shipment, \
-            workers.shipped(compile_scene(_smoke(3.0)), scene.integrator) as other:
+    with shipped(cs, scene.integrator) as shipment, \
+            shipped(compile_scene(_smoke(3.0)), scene.integrator) as other:
         assert shipment.key != other.key  # one voxel differs
-        loaded, _ = workers.load_shipment(shipment.path)
+        loaded, _ = load_shipment(shipment.path)
         for mine, theirs in [(cs.media.grid_data, loaded.media.grid_data), (cs.vertices, loaded.vertices)]:
             np.testing.assert_array_equal(theirs, mine)
             assert theirs.flags.writeable and theirs.flags.aligned and theirs.flags.c_contiguous
@@ -169,10 +169,10 @@ def test_a_shipment_maps_its_arrays_and_its_key_covers_them():
 def test_a_failing_worker_reports_the_error_and_goes_on():
     from multiprocessing import Pipe
 
-    from renderer import workers
+    from renderer.shipment import Shipment
 
     parent, child = Pipe()
-    parent.send((workers.Shipment("no-such-scene", "/nonexistent/haze-scene.pkl"), plan_units(8, 8, 1)[0], 0))
+    parent.send((Shipment("no-such-scene", "/nonexistent/haze-scene.pkl"), plan_units(8, 8, 1)[0], 0))
     parent.send(None)
     run_worker_loop(child)
     kind, index, error, text = parent.recv()

@@ -63,8 +63,8 @@ def unit_overhead(units: int) -> tuple[float, float]:
     from renderer.cluster_tasks import trace_task
     from renderer.compile import compile_scene
     from renderer.integrator.wavefront import Tracer
+    from renderer.shipment import scene_payload
     from renderer.units import Unit, trace_unit
-    from renderer.workers import scene_payload
 
     scene = cornell_box(4, 1, max_bounces=3)
     cs = compile_scene(scene)
@@ -94,7 +94,8 @@ def unit_overhead(units: int) -> tuple[float, float]:
 
 def pool_per_unit(cs, scene: Scene, plan) -> float:
     """Seconds of worker time per unit on the local pool of 2, units handed out as it does."""
-    from renderer.workers import pool, shipped
+    from renderer.shipment import shipped
+    from renderer.workers import pool
 
     pool.resize(2)
     with shipped(cs, scene.integrator) as shipment:
