@@ -1,18 +1,12 @@
-"""The add-on's and the renderer's modules import each other without circles (tools/import_cycles.py)."""
+"""The add-on's and the renderer's modules import each other without circles (bench/import_cycles.py)."""
 
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
-
-TOOL = Path(__file__).resolve().parents[1] / "tools" / "import_cycles.py"
+from bench import import_cycles
 
 
 def load_tool():
-    spec = importlib.util.spec_from_file_location("import_cycles", TOOL)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return import_cycles
 
 
 def test_circles_are_found():

@@ -6,14 +6,14 @@ a function-level import only moves a circle to run time, it does not remove it. 
 `package`. Importing a module also runs its parents' __init__ files; those implied edges are
 left out (every module would otherwise form a circle with its package's __init__).
 
-Usage: .venv/bin/python tools/import_cycles.py [addon renderer ...]
+Usage: .venv/bin/python -m bench import_cycles [addon renderer ...]
 Exit status 1 when a circle is found.
 """
 
 from __future__ import annotations
 
+import argparse
 import ast
-import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -89,8 +89,11 @@ def circles(graph: dict[str, set[str]]) -> list[list[str]]:
     return found
 
 
-def main(argv: list[str]) -> int:
-    packages = argv or ["addon"]
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(
+        prog="python -m bench import_cycles", description=__doc__.splitlines()[0])
+    parser.add_argument("packages", nargs="*", default=["addon"], help="packages to check (default addon)")
+    packages = parser.parse_args(argv).packages
     known: dict[str, Path] = {}
     for package in packages:
         known.update(module_names(package))
@@ -102,7 +105,3 @@ def main(argv: list[str]) -> int:
     for component in found:
         print("  circle: " + ", ".join(component))
     return 1 if found else 0
-
-
-if __name__ == "__main__":
-    raise SystemExit(main(sys.argv[1:]))

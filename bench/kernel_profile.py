@@ -1,4 +1,4 @@
-"""Where a benchmark scene's time goes, kernel by kernel: `.venv/bin/python tools/kernel_profile.py
+"""Where a benchmark scene's time goes, kernel by kernel: `.venv/bin/python -m bench kernel_profile
 [scene] [--spp N] [--repeats N]`. Prints a table.
 
 One core, in this process, after a warm-up pass. Every kernel call from the batch driver
@@ -12,21 +12,18 @@ and the share of the best run's total. Scenes: those of `python -m bench speed` 
 from __future__ import annotations
 
 import argparse
-import sys
 import time
 from collections import Counter
 from pathlib import Path
 
-REPO = Path(__file__).resolve().parents[1]
-if str(REPO) not in sys.path:
-    sys.path.insert(0, str(REPO))
+from bench.scenes import SCENES
+from bench.speed import _scenes
+from renderer.compile import compile_scene
+from renderer.film import Film
+from renderer.integrator import wavefront
+from renderer.integrator.wavefront import Tracer
 
-from bench.scenes import SCENES  # noqa: E402
-from bench.speed import _scenes  # noqa: E402
-from renderer.compile import compile_scene  # noqa: E402
-from renderer.film import Film  # noqa: E402
-from renderer.integrator import wavefront  # noqa: E402
-from renderer.integrator.wavefront import Tracer  # noqa: E402
+REPO = Path(__file__).resolve().parents[1]
 
 
 class _TimedKernels:
@@ -90,7 +87,8 @@ def profile(scene_name: str, size: int, spp: int, repeats: int) -> tuple[dict[st
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(
+        prog="python -m bench kernel_profile", description=__doc__.splitlines()[0])
     parser.add_argument("scene", nargs="?", default="cornell_fog_g0", choices=[*_scenes(8), *SCENES])
     parser.add_argument("--size", type=int, default=128)
     parser.add_argument("--spp", type=int, default=16)
@@ -104,7 +102,3 @@ def main(argv: list[str] | None = None) -> int:
     for part, seconds in sorted(best.items(), key=lambda kv: -kv[1]):
         print(f"{part:<20}{seconds / samples * 1e9:>10.1f}{seconds / total:>8.1%}")
     return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -5,23 +5,19 @@ Each configuration traces the same scene in passes of `--spp` samples per pixel 
 warm-up pass (compiling what it needs), the three alternating so that the machine's load
 drifts alike over all of them; prints the median of `--repeats` passes.
 
-    .venv/bin/python tools/pass_cost.py [--size 128] [--spp 2] [--repeats 5] [--scenes box fog]
+    .venv/bin/python -m bench pass_cost [--size 128] [--spp 2] [--repeats 5] [--scenes box fog]
 """
 
 from __future__ import annotations
 
 import argparse
 import statistics
-import sys
 import time
-from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
-from examples.scenes import cornell_box, cornell_fog  # noqa: E402
-from renderer.compile import compile_scene  # noqa: E402
-from renderer.film import Film  # noqa: E402
-from renderer.integrator.wavefront import Tracer  # noqa: E402
+from examples.scenes import cornell_box, cornell_fog
+from renderer.compile import compile_scene
+from renderer.film import Film
+from renderer.integrator.wavefront import Tracer
 
 SCENES = {"box": cornell_box, "fog": cornell_fog}
 CONFIGS = {"no passes": (False, False), "data + denoising": (True, False), "+ light passes": (True, True)}
@@ -34,13 +30,14 @@ def tracer_for(make, size: int, aovs: bool, light: bool) -> tuple[Tracer, int, i
     return Tracer(cs, scene.integrator), cs.width, cs.height
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(
+        prog="python -m bench pass_cost", description=__doc__.split("\n")[0])
     parser.add_argument("--size", type=int, default=128)
     parser.add_argument("--spp", type=int, default=2)
     parser.add_argument("--repeats", type=int, default=5)
     parser.add_argument("--scenes", nargs="+", choices=sorted(SCENES), default=sorted(SCENES))
-    args = parser.parse_args()
+    args = parser.parse_args(argv)
     for name in args.scenes:
         tracers = {label: tracer_for(SCENES[name], args.size, *flags) for label, flags in CONFIGS.items()}
         rates: dict[str, list[float]] = {label: [] for label in CONFIGS}
@@ -57,7 +54,4 @@ def main() -> None:
                  for label, r in rates.items()]
         print(f"{name} {args.size}x{args.size}, M samples/s, median of {args.repeats}: " + "; ".join(cells),
               flush=True)
-
-
-if __name__ == "__main__":
-    main()
+    return 0

@@ -6,14 +6,13 @@ at a small size in one process (one Tracer call, so the film's sums run in sampl
 and writes the images to an .npz; `--compare OLD.npz` renders again and reports, per case,
 the largest difference relative to the image's own scale.
 
-    .venv/bin/python tools/golden_images.py -o /tmp/before.npz      # on the old commit
-    .venv/bin/python tools/golden_images.py --compare /tmp/before.npz  # on the new one
+    .venv/bin/python -m bench golden -o /tmp/before.npz      # on the old commit
+    .venv/bin/python -m bench golden --compare /tmp/before.npz  # on the new one
 """
 
 from __future__ import annotations
 
 import argparse
-import sys
 import time
 from collections.abc import Callable
 from dataclasses import replace
@@ -21,14 +20,12 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
-from examples import media_scenes as ms  # noqa: E402
-from examples import scenes as sc  # noqa: E402
-from renderer.compile import compile_scene  # noqa: E402
-from renderer.film import Film  # noqa: E402
-from renderer.integrator.wavefront import Tracer  # noqa: E402
-from renderer.scene import Medium, PointLight, Scene, SpotLight, SunLight  # noqa: E402
+from examples import media_scenes as ms
+from examples import scenes as sc
+from renderer.compile import compile_scene
+from renderer.film import Film
+from renderer.integrator.wavefront import Tracer
+from renderer.scene import Medium, PointLight, Scene, SpotLight, SunLight
 
 SIZE = 24
 SPP = 8
@@ -109,7 +106,9 @@ def render_case(scene: Scene) -> np.ndarray:
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = argparse.ArgumentParser(
+        prog="python -m bench golden", description=__doc__,
+        formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("-o", "--out", type=Path, help="write the images to this .npz")
     ap.add_argument("--compare", type=Path, help="compare with the images of this .npz")
     ap.add_argument("--rtol", type=float, default=1e-5, help="largest difference / image scale allowed")
@@ -143,7 +142,3 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{passed} passed, {len(failed)} failed (rtol {args.rtol:g}, worst {worst:.2e})")
         return 1 if failed else 0
     return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -1,6 +1,6 @@
 """One-core samples per second of the speed benchmark's scenes, for A/B runs of two builds.
 
-    cd TREE && .venv/bin/python tools/speed_ab.py [repeats] [--grids]
+    cd TREE && .venv/bin/python -m bench speed_ab [repeats] [--grids]
 
 Prints one line: M samples/s (CPU time of this thread, best of `repeats` after a warm-up
 pass) for the surface Cornell box and the fog box at g 0 and 0.9, 128x128, 16 spp, the
@@ -11,17 +11,14 @@ and compare the best of each: this VM's one-core speed swings by 10% from run to
 
 from __future__ import annotations
 
-import sys
+import argparse
 import time
-from pathlib import Path
 
-sys.path.insert(0, str(Path.cwd()))
-
-from examples.media_scenes import fire_ball, smoke_ball  # noqa: E402
-from examples.scenes import cornell_box, cornell_fog  # noqa: E402
-from renderer.compile import compile_scene  # noqa: E402
-from renderer.film import Film  # noqa: E402
-from renderer.integrator.wavefront import Tracer  # noqa: E402
+from examples.media_scenes import fire_ball, smoke_ball
+from examples.scenes import cornell_box, cornell_fog
+from renderer.compile import compile_scene
+from renderer.film import Film
+from renderer.integrator.wavefront import Tracer
 
 SIZE, SPP = 128, 16
 
@@ -38,10 +35,13 @@ def samples_per_second(scene, repeats: int) -> float:
     return cs.width * cs.height * SPP / best
 
 
-def main() -> int:
-    args = [a for a in sys.argv[1:] if a != "--grids"]
-    repeats = int(args[0]) if args else 3
-    if "--grids" in sys.argv:
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m bench speed_ab", description=__doc__.splitlines()[0])
+    parser.add_argument("repeats", type=int, nargs="?", default=3, help="timed runs per scene (best kept)")
+    parser.add_argument("--grids", action="store_true", help="the smoke ball and the fire ball instead")
+    args = parser.parse_args(argv)
+    repeats = args.repeats
+    if args.grids:
         scenes = {"smoke ball": smoke_ball(SIZE, SPP), "fire ball": fire_ball(SIZE, SPP)}
     else:
         scenes = {"surface": cornell_box(SIZE, SPP), "fog g0": cornell_fog(SIZE, SPP, 0.0),
@@ -49,7 +49,3 @@ def main() -> int:
     print(" | ".join(f"{name} {samples_per_second(s, repeats) / 1e6:.3f}" for name, s in scenes.items()),
           flush=True)
     return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())

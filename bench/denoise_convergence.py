@@ -6,24 +6,20 @@ Renders a reference (1024 spp, another seed), then doubles the samples of one fi
 OIDN-denoised one (renderer.denoise with the film's albedo and normal passes), the time
 counting the tracing so far plus that denoise.
 
-    .venv/bin/python tools/denoise_convergence.py [--size 64] [--max-spp 256] [--scene fog|box]
+    .venv/bin/python -m bench denoise_convergence [--size 64] [--max-spp 256] [--scene fog|box]
 """
 
 from __future__ import annotations
 
 import argparse
-import sys
 import time
-from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
-from examples.scenes import cornell_box, cornell_fog  # noqa: E402
-from renderer.compile import compile_scene  # noqa: E402
-from renderer.denoise import denoise  # noqa: E402
-from renderer.film import REL_EPS, Film  # noqa: E402
-from renderer.integrator.wavefront import Tracer  # noqa: E402
-from renderer.passes import film_passes  # noqa: E402
+from examples.scenes import cornell_box, cornell_fog
+from renderer.compile import compile_scene
+from renderer.denoise import denoise
+from renderer.film import REL_EPS, Film
+from renderer.integrator.wavefront import Tracer
+from renderer.passes import film_passes
 
 SCENES = {"fog": cornell_fog, "box": cornell_box}
 
@@ -32,13 +28,14 @@ def rel_mse(image, reference) -> float:
     return float(((image - reference) ** 2 / (reference ** 2 + REL_EPS)).mean())
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(
+        prog="python -m bench denoise_convergence", description=__doc__.split("\n")[0])
     parser.add_argument("--size", type=int, default=64)
     parser.add_argument("--max-spp", type=int, default=256)
     parser.add_argument("--reference-spp", type=int, default=1024)
     parser.add_argument("--scene", choices=sorted(SCENES), default="fog")
-    args = parser.parse_args()
+    args = parser.parse_args(argv)
     make = SCENES[args.scene]
     scene = make(size=args.size, spp=args.max_spp)
     scene.film.aovs = True
@@ -63,7 +60,4 @@ def main() -> None:
         seconds = time.perf_counter() - t
         raw_error, clean_error = rel_mse(film.image(), ref), rel_mse(clean, ref)
         print(f"{spp} | {traced:.2f} | {raw_error:.3g} | {clean_error:.3g} | {seconds:.2f}", flush=True)
-
-
-if __name__ == "__main__":
-    main()
+    return 0

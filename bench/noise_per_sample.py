@@ -1,6 +1,6 @@
 """Noise per sample of a benchmark scene, and what the film's error estimates make of it.
 
-    python tools/noise_per_sample.py [scene] [--runs 16] [--spp 16,64] [--size 64]
+    .venv/bin/python -m bench noise_per_sample [scene] [--runs 16] [--spp 16,64] [--size 64]
 
 Renders `runs` independent images (seeds --seed, --seed + 1, ...) per sample count in this process and
 prints relMSE x spp, where relMSE is the variance across the runs per pixel over the runs'
@@ -13,28 +13,25 @@ from their second moment (Film.variance_of_mean), both over the same level as th
 from __future__ import annotations
 
 import argparse
-import sys
 import time
-from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
-from bench.scenes import SCENES  # noqa: E402
-from renderer.compile import compile_scene  # noqa: E402
-from renderer.film import REL_EPS, Film  # noqa: E402
-from renderer.integrator.wavefront import Tracer  # noqa: E402
+from bench.scenes import SCENES
+from renderer.compile import compile_scene
+from renderer.film import REL_EPS, Film
+from renderer.integrator.wavefront import Tracer
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(
+        prog="python -m bench noise_per_sample", description=__doc__.split("\n")[0])
     parser.add_argument("scene", nargs="?", default="hdri", choices=sorted(SCENES))
     parser.add_argument("--runs", type=int, default=16)
     parser.add_argument("--spp", default="16,64")
     parser.add_argument("--size", type=int, default=64)
     parser.add_argument("--seed", type=int, default=100, help="of the first run")
-    args = parser.parse_args()
+    args = parser.parse_args(argv)
     scene = SCENES[args.scene].build(args.size)
     tracer = Tracer(compile_scene(scene), scene.integrator)
     for spp in (int(x) for x in args.spp.split(",")):
@@ -54,7 +51,4 @@ def main() -> None:
         print(f"{args.scene} {spp} spp x {args.runs}: relMSE x spp {true * spp:.4g}; against it, "
               f"rel_mse_estimate {estimate:.3f}, split variance {split:.3f}, second moment {moment:.3f}; "
               f"{seconds:.2f} s a run", flush=True)
-
-
-if __name__ == "__main__":
-    main()
+    return 0

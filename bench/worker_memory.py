@@ -1,4 +1,4 @@
-"""Memory of the worker processes with a large grid: `python tools/worker_memory.py [n]`.
+"""Memory of the worker processes with a large grid: `.venv/bin/python -m bench worker_memory [n]`.
 
 Renders the Cornell box with an n^3 float32 smoke grid (default 256: 64 MB) on two worker
 processes and prints, per worker, the peak RSS, PSS (shared pages divided among the
@@ -11,16 +11,14 @@ per machine: each worker's USS stays far below the grid's size.
 
 from __future__ import annotations
 
-import sys
+import argparse
 from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
-from examples.media_scenes import grid_medium, with_grid_medium  # noqa: E402
-from examples.scenes import cornell_box  # noqa: E402
-from renderer.render import render_progressive, worker_pids  # noqa: E402
+from examples.media_scenes import grid_medium, with_grid_medium
+from examples.scenes import cornell_box
+from renderer.render import render_progressive, worker_pids
 
 
 def smaps(pid: int) -> dict[str, int]:
@@ -33,8 +31,12 @@ def smaps(pid: int) -> dict[str, int]:
             "uss": fields["Private_Clean"] + fields["Private_Dirty"]}
 
 
-def main() -> int:
-    n = int(sys.argv[1]) if len(sys.argv) > 1 else 256
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(
+        prog="python -m bench worker_memory", description=__doc__.splitlines()[0])
+    parser.add_argument("n", type=int, nargs="?", default=256,
+                        help="voxels per axis of the grid (default 256)")
+    n = parser.parse_args(argv).n
     c = (np.arange(n) + 0.5) / n - 0.5
     z, y, x = np.meshgrid(c, c, c, indexing="ij", sparse=True)
     density = np.exp(-(x * x + y * y + z * z) / 0.05).astype(np.float32)
@@ -57,7 +59,3 @@ def main() -> int:
             rss, pss, uss = (m[k] / mb for k in ("rss", "pss", "uss"))
             print(f"worker {pid} {what}: RSS {rss:.0f} MB, PSS {pss:.0f} MB, USS {uss:.0f} MB")
     return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())

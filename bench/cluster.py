@@ -1,4 +1,4 @@
-"""Cluster rendering figures: `.venv/bin/python tools/cluster_bench.py [--size 128] [--spp 256]`.
+"""Cluster rendering figures: `.venv/bin/python -m bench cluster [--size 128] [--spp 256]`.
 
 Prints, for the fog Cornell box (g = 0, max_bounces 3), wall-clock seconds for one full
 render (kernels compiled, workers started and holding the scene's tracer: a warm-up render
@@ -21,18 +21,15 @@ and the speed-ups. Then:
 from __future__ import annotations
 
 import argparse
-import sys
 import time
 from pathlib import Path
 
-REPO = Path(__file__).resolve().parents[1]
-if str(REPO) not in sys.path:
-    sys.path.insert(0, str(REPO))
+from examples.scenes import cornell_box, cornell_fog
+from renderer.cluster import LOCAL, connect, shutdown_clusters
+from renderer.render import render_progressive
+from renderer.scene import Scene
 
-from examples.scenes import cornell_box, cornell_fog  # noqa: E402
-from renderer.cluster import LOCAL, connect, shutdown_clusters  # noqa: E402
-from renderer.render import render_progressive  # noqa: E402
-from renderer.scene import Scene  # noqa: E402
+REPO = Path(__file__).resolve().parents[1]
 
 
 def fog(size: int, spp: int, seed: int = 0) -> Scene:
@@ -119,7 +116,8 @@ def pool_per_unit(cs, scene: Scene, plan) -> float:
 
 
 def main(argv: list[str]) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(
+        prog="python -m bench cluster", description=__doc__.splitlines()[0])
     parser.add_argument("--size", type=int, default=128)
     parser.add_argument("--spp", type=int, default=256)
     parser.add_argument("--repeat", type=int, default=3)
@@ -149,7 +147,3 @@ def main(argv: list[str]) -> int:
     print(f"starting a LocalCluster of 2 workers: {start:.2f} s")
     shutdown_clusters()
     return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main(sys.argv[1:]))

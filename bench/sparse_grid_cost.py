@@ -1,4 +1,4 @@
-"""Dense against sparse (bricked) grids: `python tools/sparse_grid_cost.py [n ...]`. Prints figures.
+"""Dense against sparse (bricked) grids: `.venv/bin/python -m bench sparse_grid_cost [n ...]`. Prints figures.
 
 For each n (default 32 64 128) the smooth blob of bench/contrast.py on an n^3 grid, stored
 dense and as 8^3 bricks (renderer/media/bricks.py), both with the majorant grid; reports
@@ -11,20 +11,17 @@ addon/export/volume_read.py SPARSE_MIN_VOXELS).
 
 from __future__ import annotations
 
-import sys
+import argparse
 import time
 from dataclasses import replace
-from pathlib import Path
 
 import numpy as np
 from numba import njit
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
-from bench.contrast import grids, scene, seconds_per_sample  # noqa: E402
-from renderer.media import compile_media  # noqa: E402
-from renderer.media.bricks import to_sparse  # noqa: E402
-from renderer.media.grid import grid_lookup  # noqa: E402
+from bench.contrast import grids, scene, seconds_per_sample
+from renderer.media import compile_media
+from renderer.media.bricks import to_sparse
+from renderer.media.grid import grid_lookup
 
 
 @njit(cache=True)
@@ -35,8 +32,12 @@ def _lookups(mt, m, pts):
     return total
 
 
-def main() -> int:
-    sizes = [int(a) for a in sys.argv[1:]] or [32, 64, 128]
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(
+        prog="python -m bench sparse_grid_cost", description=__doc__.splitlines()[0])
+    parser.add_argument("sizes", type=int, nargs="*", default=[32, 64, 128],
+                        help="voxels per axis (default 32 64 128)")
+    sizes = parser.parse_args(argv).sizes
     pts = np.random.default_rng(0).random((2_000_000, 3))
     for n in sizes:
         dense = grids(n)["smooth"]
@@ -55,7 +56,3 @@ def main() -> int:
               f"({len(sparse.bricks)} of {sparse.index.size} bricks); lookup {per[0]:.1f} / {per[1]:.1f} ns; "
               f"CPU per sample {cpu[0]:.1f} / {cpu[1]:.1f} us (dense / sparse)", flush=True)
     return 0
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())

@@ -1,4 +1,4 @@
-"""How Haze's cost per sample scales: `.venv/bin/python tools/scaling.py [--quick]`. Prints tables.
+"""How Haze's cost per sample scales: `.venv/bin/python -m bench scaling [--quick]`. Prints tables.
 
 One core, in this process (no worker start-up), after a warm-up pass; each row renders
 until at least --seconds have passed. Four sweeps:
@@ -18,27 +18,24 @@ table, majorant grid) plus the Tracer (Embree scene).
 from __future__ import annotations
 
 import argparse
-import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-REPO = Path(__file__).resolve().parents[1]
-if str(REPO) not in sys.path:
-    sys.path.insert(0, str(REPO))
-
-from examples.media_scenes import grid_box_mesh, grid_medium, interface_material, with_grid_medium  # noqa: E402
-from examples.scenes import cornell_box, cornell_fog, diffuse, icosphere  # noqa: E402
-from renderer.compile import compile_scene  # noqa: E402
-from renderer.film import Film  # noqa: E402
-from renderer.integrator.wavefront import Tracer  # noqa: E402
-from renderer.scene import Medium, Mesh, Scene  # noqa: E402
+from examples.media_scenes import grid_box_mesh, grid_medium, interface_material, with_grid_medium
+from examples.scenes import cornell_box, cornell_fog, diffuse, icosphere
+from renderer.compile import compile_scene
+from renderer.film import Film
+from renderer.integrator.wavefront import Tracer
+from renderer.scene import Medium, Mesh, Scene
 
 BALL_CENTER = (0.0, -0.4, 0.0)
 BALL_HALF = 0.55
 SMALL_SIZE = 64  # image size of the sweeps that are not about resolution
+
+REPO = Path(__file__).resolve().parents[1]
 
 
 @dataclass
@@ -169,7 +166,8 @@ def thickness_sweep(taus: list[float], seconds: float, n: int) -> None:
 
 
 def main(argv: list[str]) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(
+        prog="python -m bench scaling", description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="fewer rows, shorter measurements")
     parser.add_argument("--seconds", type=float, default=None, help="tracing time per row")
     args = parser.parse_args(argv)
@@ -179,7 +177,3 @@ def main(argv: list[str]) -> int:
     grid_sweep([32, 64] if args.quick else [32, 64, 128, 256], seconds, 10.0)
     thickness_sweep([0.1, 10.0] if args.quick else [0.1, 1.0, 10.0, 100.0], seconds, 64)
     return 0
-
-
-if __name__ == "__main__":
-    raise SystemExit(main(sys.argv[1:]))
