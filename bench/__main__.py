@@ -16,7 +16,8 @@ COMMANDS = {
     "denoise_convergence": "bench.denoise_convergence", "noise_per_sample": "bench.noise_per_sample",
     "pass_cost": "bench.pass_cost", "sparse_grid_cost": "bench.sparse_grid_cost",
     "worker_memory": "bench.worker_memory", "speed_ab": "bench.speed_ab",
-    "kernel_profile": "bench.kernel_profile",
+    "kernel_profile": "bench.kernel_profile", "hdri_variance": "bench.hdri_variance",
+    "preview_time": "bench.preview_time",
     # developer tools
     "golden": "bench.golden", "import_cycles": "bench.import_cycles",
 }

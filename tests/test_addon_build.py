@@ -18,8 +18,8 @@ import zipfile
 from pathlib import Path
 
 import pytest
-from bpy_helpers import REPO, isolated_site, run_blender
 
+from bench.blender import REPO, isolated_site, run_blender
 from bench.installed import built_zip as built_zip_once
 from renderer.imageio import read_exr
 

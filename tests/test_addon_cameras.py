@@ -2,7 +2,7 @@
 
 One Blender process renders a small stage (floor, wall, two balls, a sun and a sky) seen
 by each camera, K times with Cycles and K times with Haze (different seeds), and the test
-compares them as tests/test_addon_cycles.py does (bpy_helpers.assert_agree: image means
+compares them as tests/test_addon_cycles.py does (bench.comparison.assert_agree: image means
 within 1 % with noise sigma <= 1/3 %, 8x8 block means within noise by Bonferroni z and
 chi-square). The cameras: perspective with depth of field (focus object, hexagonal
 aperture turned 20 degrees, anamorphic ratio), orthographic (non-square image, shift),
@@ -22,7 +22,9 @@ from pathlib import Path
 import numpy as np
 import OpenEXR
 import pytest
-from bpy_helpers import assert_agree, compare_images, run_blender, shared_numba_cache
+
+from bench.blender import run_blender, shared_numba_cache
+from bench.comparison import assert_agree, compare_images
 
 pytestmark = [pytest.mark.bpy, pytest.mark.slow]
 

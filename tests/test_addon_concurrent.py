@@ -14,7 +14,8 @@ from collections import Counter
 from pathlib import Path
 
 import pytest
-from bpy_helpers import run_blender
+
+from bench.blender import run_blender
 
 pytestmark = [pytest.mark.bpy, pytest.mark.slow]
 

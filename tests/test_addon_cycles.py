@@ -3,7 +3,7 @@
 For each scene, one Blender process renders K independent images with Cycles (as an
 unbiased reference: same bounce limits for every kind of bounce, box filter of width 1, no
 denoising, clamping, glossy blur or light threshold) and K with Haze, different seeds each.
-The tests require (bpy_helpers.assert_agree):
+The tests require (bench.comparison.assert_agree):
 
 * the image mean of every channel within 1 %, where noise alone has sigma <= 1/3 % (else
   the scene's sample counts are too low for the test to mean anything, and it fails);
@@ -25,8 +25,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from bpy_helpers import assert_agree, compare_images, run_blender, shared_numba_cache
 
+from bench.blender import run_blender, shared_numba_cache
+from bench.comparison import assert_agree, compare_images
 from renderer.imageio import read_exr
 
 pytestmark = [pytest.mark.bpy, pytest.mark.slow]

@@ -12,8 +12,8 @@ import math
 
 import numpy as np
 import pytest
-from bpy_helpers import run_blender, shared_numba_cache
 
+from bench.blender import run_blender, shared_numba_cache
 from renderer.scenefile import load_scene
 from renderer.shading.program import BIND_FIELDS
 

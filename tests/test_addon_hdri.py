@@ -11,14 +11,14 @@ are checked pixel by pixel as well as the lighting.
 It also prints each renderer's noise per sample, relMSE x spp (relMSE estimated from the
 spread of the K renders per pixel), and the seconds each took, for the README's figures;
 it asserts nothing about them. Four runs make a rough estimate (the noise is heavy-tailed
-around the sun); tools/hdri_variance.py measures it from more. Printed here (2-core VM,
+around the sun); python -m bench hdri_variance measures it from more. Printed here (2-core VM,
 loaded): Haze 0.42, Cycles 0.090 per sample with hashed random numbers and an environment
 density constant per map pixel; with the first bounce stratified (renderer.kernels.rng) and
 k x k cells per pixel of this 256-column map (renderer.lights.environment_map), Haze 0.123
 against Cycles 0.090 (equirectangular) and 0.334 against 0.183 (mirror ball, sampled
 through an equirectangular grid evaluated from the ball); with the mirror ball sampled on
 its own image cells (renderer.lights.environment_ball), 0.186 against 0.180. With
-`tools/hdri_variance.py --runs 24 --spp 32` (both engines at 32 spp, jackknife standard
+`python -m bench hdri_variance --runs 24 --spp 32` (both engines at 32 spp, jackknife standard
 errors): equirectangular Haze 0.125 +- 0.021, Cycles 0.182 +- 0.028; mirror ball Haze
 0.666 +- 0.065 through the grid, 0.179 +- 0.026 on its own cells, Cycles 0.207 +- 0.030.
 Haze's 4 x 128 spp took 11 s and Cycles' 4 x 32 spp 29 s before those changes.
@@ -28,8 +28,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from bpy_helpers import assert_agree, compare_images, run_blender, shared_numba_cache
 
+from bench.blender import run_blender, shared_numba_cache
+from bench.comparison import assert_agree, compare_images
 from renderer.imageio import read_exr
 
 pytestmark = [pytest.mark.bpy, pytest.mark.slow]

@@ -27,8 +27,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from block_stats import PRECISION, block_tests, t_quantile, worst
-from bpy_helpers import run_blender, shared_numba_cache
 from pass_stage import fog_silhouette, glass_region, read_passes, wall_behind_fog
+
+from bench.blender import run_blender, shared_numba_cache
 
 pytestmark = [pytest.mark.bpy, pytest.mark.slow]
 

@@ -9,8 +9,8 @@ kernel is compiled: these tests are about the add-on's bookkeeping, not numba.
 from __future__ import annotations
 
 import pytest
-from bpy_helpers import isolated_site, run_blender, shared_numba_cache
 
+from bench.blender import isolated_site, run_blender, shared_numba_cache
 from bench.installed import built_zip as built_zip_once
 
 pytestmark = [pytest.mark.bpy]  # the real-compile test is also marked slow

@@ -15,7 +15,8 @@ on this shared 2-core machine it varies with the other jobs' load).
 from __future__ import annotations
 
 import pytest
-from bpy_helpers import run_blender, shared_numba_cache
+
+from bench.blender import run_blender, shared_numba_cache
 
 pytestmark = [pytest.mark.bpy, pytest.mark.slow]
 

@@ -9,7 +9,7 @@
 Both export as they should (quick, no kernel compiles), and both render as Cycles renders
 them (slow): RUNS renders with independent seeds per renderer in one Blender process,
 compared by image means and block z-scores from the renders' own variance
-(bpy_helpers.compare_images). tools/procedural_volume_cycles.py prints the same comparison.
+(bench.comparison.compare_images). tools/procedural_volume_cycles.py prints the same comparison.
 The renders became affordable when the trackers started calling the shader interpreter
 through its address (renderer.kernels.native_call): before, a procedural medium's first
 render spent over 15 CPU minutes compiling the interpreter again inside each tracker."""
@@ -18,8 +18,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from bpy_helpers import assert_agree, compare_images, run_blender, shared_numba_cache
 
+from bench.blender import run_blender, shared_numba_cache
+from bench.comparison import assert_agree, compare_images
 from renderer.imageio import read_exr
 
 pytestmark = [pytest.mark.bpy]

@@ -16,8 +16,8 @@ import shutil
 from pathlib import Path
 
 import pytest
-from bpy_helpers import REPO, addon_mode, isolated_site, run_blender, shared_numba_cache
 
+from bench.blender import REPO, addon_mode, isolated_site, run_blender, shared_numba_cache
 from bench.installed import built_zip as built_zip_once
 
 pytestmark = [pytest.mark.bpy, pytest.mark.slow]

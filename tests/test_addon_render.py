@@ -12,8 +12,8 @@ import sys
 
 import numpy as np
 import pytest
-from bpy_helpers import REPO, run_blender, shared_numba_cache
 
+from bench.blender import REPO, run_blender, shared_numba_cache
 from renderer.imageio import read_exr
 
 pytestmark = [pytest.mark.bpy, pytest.mark.slow]

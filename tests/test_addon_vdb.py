@@ -11,7 +11,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from bpy_helpers import run_blender
+
+from bench.blender import run_blender
 
 BODY = r'''
 from pathlib import Path

@@ -26,8 +26,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from block_stats import block_tests, t_quantile, worst
-from bpy_helpers import run_blender, shared_numba_cache
 from pass_stage import fog_length, pixel_rays, read_passes
+
+from bench.blender import run_blender, shared_numba_cache
 
 pytestmark = [pytest.mark.bpy, pytest.mark.slow]
 

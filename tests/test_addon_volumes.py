@@ -10,7 +10,7 @@ Three kinds of tests:
 * renders: the exported smoke ball against the same grid written directly in the renderer's
   scene format (same seed: the same image to float precision), cropped against uncropped
   grids (same field exactly, same image within noise), and Haze against Cycles on a smoke
-  ball in a Cornell box (bpy_helpers.assert_agree: image mean within 1 %, 8x8 block means
+  ball in a Cornell box (bench.comparison.assert_agree: image mean within 1 %, 8x8 block means
   within their noise).
 """
 
@@ -20,7 +20,6 @@ import math
 
 import numpy as np
 import pytest
-from bpy_helpers import assert_agree, compare_images, run_blender, shared_numba_cache
 
 from addon.export import grid_fields
 from addon.export.grid_fields import clean_grid, crop, crop_box, evaluate_fields, factor_rank_one
@@ -37,6 +36,8 @@ from addon.volume_grids import (
     smoke_ball_density,
     write_pbrt,
 )
+from bench.blender import run_blender, shared_numba_cache
+from bench.comparison import assert_agree, compare_images
 from examples import media_scenes
 from renderer.imageio import read_exr
 from renderer.media import generators

@@ -235,8 +235,7 @@ def main():
 @pytest.mark.bpy
 @pytest.mark.slow
 def test_a_headless_animation_on_a_local_cluster_writes_three_frames_and_the_test_button_refuses(tmp_path):
-    from bpy_helpers import run_blender, shared_numba_cache
-
+    from bench.blender import run_blender, shared_numba_cache
     from renderer.imageio import read_exr
 
     run = run_blender(ANIMATION_BODY, tmp_path, timeout=900, numba_cache=shared_numba_cache())

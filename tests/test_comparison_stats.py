@@ -1,4 +1,4 @@
-"""The Haze-against-Cycles comparison's statistics (tests/bpy_helpers.py), on synthetic renders.
+"""The Haze-against-Cycles comparison's statistics (bench/comparison.py), on synthetic renders.
 
 A grey scene's three channels carry the same noise, so their block z-scores are nearly
 equal: the chi-square must count blocks, not blocks x channels, or it rejects a correct
@@ -9,7 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from bpy_helpers import assert_agree, chi_square_threshold, compare_images
+
+from bench.comparison import assert_agree, chi_square_threshold, compare_images
 
 RUNS, SIZE, BLOCK = 4, 32, 8
 

@@ -25,15 +25,16 @@ textured emission, Alpha and IOR.
   program.
 
 The scenes render in one Blender process (one kernel compile); Haze and Cycles agree within
-noise (bpy_helpers.assert_agree).
+noise (bench.comparison.assert_agree).
 """
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
-from bpy_helpers import assert_agree, compare_images, run_blender, shared_numba_cache
 
+from bench.blender import run_blender, shared_numba_cache
+from bench.comparison import assert_agree, compare_images
 from renderer.imageio import read_exr
 
 pytestmark = [pytest.mark.bpy, pytest.mark.slow]

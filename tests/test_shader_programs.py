@@ -6,7 +6,7 @@ into a program, which runs at the texel centres. They must agree to float32 roun
 (the tolerance below is a few float32 ulps of values of order 1, and a looser one where
 Cycles' float32 trigonometry and pow differ from double precision).
 
-A textured scene: Haze and Cycles agree within noise (bpy_helpers.assert_agree), with an
+A textured scene: Haze and Cycles agree within noise (bench.comparison.assert_agree), with an
 Image Texture (Blender-generated colour grid, sRGB bytes), a Checker driving Principled
 Base Color and another Metallic (single-scatter GGX), a Gradient through Map Range driving
 Roughness, and a Mix
@@ -24,8 +24,9 @@ import bake_cases_nodes
 import bake_cases_textures
 import numpy as np
 import pytest
-from bpy_helpers import REPO, assert_agree, compare_images, run_blender, shared_numba_cache
 
+from bench.blender import REPO, run_blender, shared_numba_cache
+from bench.comparison import assert_agree, compare_images
 from renderer.imageio import read_exr
 
 pytestmark = [pytest.mark.bpy, pytest.mark.slow]

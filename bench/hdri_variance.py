@@ -1,6 +1,6 @@
 """Noise per sample of Haze and Cycles on the HDRI scene of tests/test_addon_hdri.py.
 
-    python tools/hdri_variance.py [--runs 12] [--spp 32] [--size 64]
+    .venv/bin/python -m bench hdri_variance [--runs 12] [--spp 32] [--size 64]
                                   [--projections EQUIRECTANGULAR,MIRROR_BALL]
                                   [--engines haze,cycles] [--out build/hdri_variance]
 
@@ -31,13 +31,10 @@ from pathlib import Path
 
 import numpy as np
 
+from bench.blender import run_blender
+from renderer.imageio import read_exr
+
 REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO))
-sys.path.insert(0, str(REPO / "tests"))
-
-from bpy_helpers import run_blender  # noqa: E402
-
-from renderer.imageio import read_exr  # noqa: E402
 
 REL_EPS = 1e-2
 MAX_BOUNCES = 3  # as tests/test_addon_hdri.py
@@ -104,15 +101,16 @@ def report(out: Path, projections: list[str], runs: int, spp: int) -> None:
                   f"({runs} runs x {spp} spp)")
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(
+        prog="python -m bench hdri_variance", description=__doc__.split("\n")[0])
     parser.add_argument("--runs", type=int, default=12)
     parser.add_argument("--spp", type=int, default=32)
     parser.add_argument("--size", type=int, default=64)
     parser.add_argument("--projections", default="EQUIRECTANGULAR,MIRROR_BALL")
     parser.add_argument("--engines", default="haze,cycles", help="engines to render ('' only reports)")
     parser.add_argument("--out", type=Path, default=REPO / "build" / "hdri_variance")
-    args = parser.parse_args()
+    args = parser.parse_args(argv)
     if args.runs < 3:
         parser.error("--runs must be at least 3 (a variance and its jackknife)")
     projections = [p for p in args.projections.split(",") if p]
@@ -129,7 +127,4 @@ def main() -> None:
             sys.exit(run.describe())
         print(f"rendered in {time.perf_counter() - start:.0f} s: {json.dumps(run.result)}")
     report(out, projections, args.runs, args.spp)
-
-
-if __name__ == "__main__":
-    main()
+    return 0

@@ -1,11 +1,11 @@
 """Warm material-preview time with Haze (issue 16 asks for at most 2 s), for a surface and
 a volume material.
 
-    .venv/bin/python tools/preview_time.py [--repeats 3] [--workers 0] [--samples N] [--profile]
+    .venv/bin/python -m bench preview_time [--repeats 3] [--workers 0] [--samples N] [--profile]
                                            [--json out.json]
 
 One bpy subprocess (fresh HOME and Blender user folders; the kernel cache of the tests,
-tests/bpy_helpers.shared_numba_cache, so a checkout whose tests ran is warm) registers the
+bench.blender.shared_numba_cache, so a checkout whose tests ran is warm) registers the
 add-on of this checkout and makes two materials with a fake user: "Surface" (a Diffuse
 BSDF) and "Volume" (Principled Volume only, density 2). bpy.ops.wm.previews_ensure()
 renders every material's icon (32x32) and preview (128x128) synchronously, through the
@@ -36,10 +36,9 @@ import sys
 import tempfile
 from pathlib import Path
 
-REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO / "tests"))
+from bench.blender import run_blender, shared_numba_cache
 
-from bpy_helpers import run_blender, shared_numba_cache  # noqa: E402
+REPO = Path(__file__).resolve().parents[1]
 
 BODY = r'''
 import cProfile
@@ -110,14 +109,15 @@ def main():
 '''
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(
+        prog="python -m bench preview_time", description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--workers", type=int, default=0)
     parser.add_argument("--samples", type=int, default=0)
     parser.add_argument("--profile", action="store_true")
     parser.add_argument("--json", type=Path)
-    args = parser.parse_args()
+    args = parser.parse_args(argv)
     print(f"load average at start: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
     with tempfile.TemporaryDirectory() as tmp:
         run = run_blender(BODY.format(repeats=args.repeats, profile=args.profile, workers=args.workers,
@@ -141,7 +141,4 @@ def main() -> None:
         print(result["profile"])
     if args.json:
         args.json.write_text(json.dumps(result, indent=2))
-
-
-if __name__ == "__main__":
-    main()
+    return 0
