@@ -1,6 +1,6 @@
 """What a Dask worker runs: trace one unit of a scene, building the scene's tracer once.
 
-The scene reaches every worker once, as the pickle of renderer.workers.scene_payload,
+The scene reaches every worker once, as the pickle of renderer.shipment.scene_payload,
 scattered with broadcast; each task names it by its hash. A worker process keeps the
 tracer of the last scene it saw (module state lives as long as the worker process), so a
 unit costs its tracing only. Tasks in one process take turns (a lock): a tracer holds its

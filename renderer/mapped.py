@@ -1,13 +1,13 @@
 """Large arrays written once to a temporary file and mapped by every process that reads them.
 
 A sparse grid's bricks (renderer.media.bricks) are 100s of MB at 512^3. Held in the
-process that builds them (Blender's) and copied into the worker shipment (renderer.workers),
+process that builds them (Blender's) and copied into the worker shipment (renderer.shipment),
 they took memory twice over: an anonymous copy in Blender's process for the whole render,
 and the file the workers map. Written here instead, row by row as they are built, they
 exist once, in a file: the builder maps it too, and its pages are the page cache's, which
 release_pages() unmaps once the export is done with them (they stay in the file and the
 page cache for the workers). The worker shipment then names the file instead of copying
-it (workers.shipped: `reference`, `resolve`).
+it (shipment.shipped: `reference`, `resolve`).
 
 Files are named by nothing the workers rely on: a shipment refers to one by the digest
 of its contents (so two exports of the same grid ship the same key and the workers keep
