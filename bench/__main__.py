@@ -10,16 +10,18 @@ from pathlib import Path
 COMMANDS = {
     # benchmarks
     "speed": "bench.speed", "convergence": "bench.convergence", "contrast": "bench.contrast",
-    "cloud512": "bench.cloud512", "cluster": "bench.cluster",
+    "cloud512": "bench.cloud512", "cluster": "bench.cluster", "first_image": "bench.first_image",
     "scaling": "bench.scaling",
     # measurements
     "denoise_convergence": "bench.denoise_convergence", "noise_per_sample": "bench.noise_per_sample",
     "pass_cost": "bench.pass_cost", "sparse_grid_cost": "bench.sparse_grid_cost",
     "worker_memory": "bench.worker_memory", "speed_ab": "bench.speed_ab",
     "kernel_profile": "bench.kernel_profile", "hdri_variance": "bench.hdri_variance",
-    "preview_time": "bench.preview_time",
+    "preview_time": "bench.preview_time", "program_cost": "bench.program_cost",
+    "procedural_tracking": "bench.procedural_tracking",
     # developer tools
     "golden": "bench.golden", "import_cycles": "bench.import_cycles",
+    "cycles_reference": "bench.cycles_reference", "blend_scene": "bench.blend_scene",
 }
 
 

@@ -1,4 +1,4 @@
-"""Benchmark scenes built in Blender: the scene is built by examples/ (tools/blend_scene.py,
+"""Benchmark scenes built in Blender: the scene is built by examples/ (bench/blend_scene.py,
 in a bpy subprocess), saved as a .blend for Cycles and exported through the add-on for Haze,
 so both renderers see one artist's scene, textures and world included. The export runs in
 the extension zip built from this checkout and installed (bench/installed.py).
@@ -19,9 +19,8 @@ from renderer.scene import Scene
 
 REPO = Path(__file__).resolve().parents[1]
 CACHE = REPO / "bench" / "cache" / "blend"
-TOOL = REPO / "tools" / "blend_scene.py"
-SOURCES = ("examples/*.py", "addon/**/*.py", "renderer/**/*.py", "tools/blend_scene.py",
-           "tests/bpy_helpers.py", "bench/installed.py")  # the zip that exports is built from these
+SOURCES = ("examples/*.py", "addon/**/*.py", "renderer/**/*.py", "bench/blend_scene.py",
+           "bench/blender.py", "bench/installed.py")  # the zip that exports is built from these
 
 
 def _sources_digest() -> str:
@@ -37,7 +36,7 @@ def export_folder(name: str, size: int, bounces: int) -> Path:
     """The folder holding scene.blend and scene/ (the Haze export), built if missing."""
     folder = CACHE / f"{name}-{size}-b{bounces}-{_sources_digest()}"
     if not (folder / "scene" / "scene.json").is_file():
-        command = [sys.executable, str(TOOL), name, str(folder), "--size", str(size),
+        command = [sys.executable, "-m", "bench", "blend_scene", name, str(folder), "--size", str(size),
                    "--bounces", str(bounces)]
         process = subprocess.run(command, capture_output=True, text=True, cwd=REPO)
         if process.returncode != 0:

@@ -13,8 +13,8 @@ For each benchmark scene (128x128, both cores):
   Denoising Albedo and Normal passes, renderer.denoise) after every pass: its own render,
   since the passes cost time, and each point's time includes its denoising (--no-denoised
   leaves it out);
-* Cycles on the same scene, rebuilt in bpy by tools/cycles_reference.py (a subprocess: the
-  renderer never imports bpy), at 1, 2, 4, ... samples, each render timed, until one takes
+* Cycles on the same scene, rebuilt in bpy by `python -m bench cycles_reference` (a
+  subprocess: the renderer never imports bpy), at 1, 2, 4, ... samples, each render timed, until one takes
   the largest budget; plus Cycles' own converged reference (mean of four seeds, cached).
 
 The error is relMSE with the reference's own noise subtracted (bench/metrics.py). Cycles is
@@ -39,7 +39,6 @@ import json
 import math
 import shutil
 import subprocess
-import sys
 import tempfile
 import time
 from dataclasses import dataclass
@@ -50,6 +49,7 @@ import numpy as np
 from renderer.film import Film
 from renderer.scene import Scene
 
+from .cycles_reference import command as cycles_command
 from .metrics import TARGETS, Curve, Reference, film_reference, stack_reference
 from .plots import svg_plot
 from .reports import SceneResult, machine_line, report
@@ -58,7 +58,6 @@ from .scenes import SCENES, SETTING_NOTES, BenchScene
 REPO = Path(__file__).resolve().parents[1]
 CACHE = REPO / "bench" / "cache" / "convergence"
 DOCS = REPO / "docs" / "convergence"
-CYCLES_TOOL = REPO / "tools" / "cycles_reference.py"
 
 MEASURE_SEED = 1
 REFERENCE_SEED = 1000  # the Haze reference uses 1000, 1001, ... (one seed per extension)
@@ -190,20 +189,20 @@ def haze_reference(scene: Scene, folder: Path, target: float, time_cap: float, w
 def cycles_source(folder: Path) -> Path:
     """What Cycles renders: the Blender scene itself for a scene built in Blender
     (bench/blend_scenes.py puts it beside the export), else the Haze scene folder, which
-    tools/cycles_reference.py rebuilds in bpy."""
+    bench/cycles_reference.py rebuilds in bpy."""
     blend = folder / "scene.blend"
     return blend if blend.is_file() else folder / "scene"
 
 
 def run_cycles(folder: Path, out: Path, samples: list[int], seeds: tuple[int, ...], time_limit: float,
                threads: int) -> dict:
-    """tools/cycles_reference.py in a subprocess (bpy lives only there); its timings."""
+    """`python -m bench cycles_reference` in a subprocess (bpy lives only there); its timings."""
     from renderer.scenefile import load_scene
 
     bounces = load_scene(folder / "scene").integrator.max_bounces
-    command = [sys.executable, str(CYCLES_TOOL), str(cycles_source(folder)), str(out),
-               "--samples", *map(str, samples), "--seeds", *map(str, seeds), "--threads", str(threads),
-               "--time-limit", str(time_limit), "--max-bounces", str(bounces)]
+    command = cycles_command([str(cycles_source(folder)), str(out), "--samples", *map(str, samples),
+                              "--seeds", *map(str, seeds), "--threads", str(threads),
+                              "--time-limit", str(time_limit), "--max-bounces", str(bounces)])
     process = subprocess.run(command, capture_output=True, text=True, cwd=REPO)
     if process.returncode != 0:
         raise RuntimeError(f"Cycles failed ({process.returncode}):\n{process.stdout[-3000:]}\n"

@@ -20,7 +20,7 @@ class BenchScene:
     settings: dict[str, dict[str, object]]
     description: str
     # For a scene built in Blender (bench/blend_scenes.py): size -> its .blend, which Cycles
-    # renders as it is; None: Cycles renders the Haze scene rebuilt by tools/cycles_reference.
+    # renders as it is; None: Cycles renders the Haze scene rebuilt by bench/cycles_reference.py.
     blend: Callable[[int], Path] | None = None
 
 

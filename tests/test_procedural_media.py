@@ -5,22 +5,22 @@ The estimators stay unbiased if no density the program produces exceeds its cell
 majorant: checked here, on the density the trackers get (shading.evaluate's entry, which
 the suite compiles for surface programs anyway, so these tests compile nothing of their
 own). That the trackers then match exp(-sigma_t * integral of the density) is checked by
-tools/procedural_tracking_check.py (ratio and delta tracking against a quadrature of the
-same program): it compiles the trackers for the procedural table type, about 5 min of CPU
-on a cold cache, beyond the suite's budget."""
+`python -m bench procedural_tracking` (ratio and delta tracking against a quadrature of the
+same program; bench/procedural_tracking.py holds the cloud): it compiles the trackers for
+the procedural table type, about 5 min of CPU on a cold cache, beyond the suite's budget."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
+from bench.procedural_tracking import cloud_program, procedural
 from renderer.errors import SceneError
 from renderer.media import compile_media
 from renderer.media.layout import MediaTable, ProceduralMediaTable
 from renderer.media.procedural import bound_violations
 from renderer.scene import Medium
-from renderer.shading.fractal import TYPES as FRACTAL_TYPES
-from renderer.shading.names import MAP_RANGE_TYPES, MATH_OPS, RAMP_SIZE
+from renderer.shading.names import MATH_OPS
 from renderer.shading.program import INSTR, OP, ShaderProgram
 
 
@@ -29,36 +29,6 @@ def _row(op: str, dst: int, a: int = 0, b: int = 0, c: int = 0, d: int = 0, i0: 
     row = [0] * INSTR.size
     row[:10] = [OP[op], dst, a, b, c, d, 0, i0, i1, i2]
     return row
-
-
-def cloud_program(scale: float = 2.5, detail: float = 2.5, normalize: bool = True, to_max: float = 6.0,
-                  ramp: bool = False, dim: int = 3, kind: str = "FBM") -> tuple[ShaderProgram, int]:
-    """Position -> Noise (3D fBM unless told) -> Map Range (linear, clamped) -> [x density
-    scale]: the usual procedural cloud. Returns (program, density register)."""
-    regs = np.zeros(24, np.float32)
-    # noise: W, scale, detail, roughness, lacunarity, offset, gain, distortion
-    regs[3:11] = (0.4, scale, detail, 0.55, 2.0, 0.8, 1.2, 0.3)
-    regs[12:17] = (0.45, 0.75, 0.0, to_max, 4.0)  # map range: from, to, steps
-    regs[18] = 1.7
-    code = [_row("position", 0), _row("noise_nd", 20, a=0, b=3, i0=dim, i1=FRACTAL_TYPES.index(kind),
-                                      i2=int(normalize)),
-            _row("map_range", 17, a=20, b=12, i0=MAP_RANGE_TYPES.index("LINEAR"), i1=1),
-            _row("math", 19, a=17, b=18, i0=MATH_OPS.index("MULTIPLY"))]
-    data = np.zeros(0, np.float32)
-    if ramp:  # a Color Ramp after the noise: RAMP_SIZE RGBA entries, a bump in the middle
-        f = np.linspace(0.0, 1.0, RAMP_SIZE)
-        table = np.stack([np.exp(-((f - 0.55) / 0.08) ** 2) * 4.0] * 4, axis=1).astype(np.float32)
-        data = table.ravel()
-        code[2] = _row("ramp", 17, a=20, i0=0, i1=1)
-    return ShaderProgram(np.array(code, np.int32), regs, np.zeros((0, 5), np.int32), data), 19
-
-
-def procedural(program: ShaderProgram, density: int, **kw) -> Medium:
-    to_world = np.eye(4)
-    to_world[:3, :3] = [[1.0, 0.3, 0.0], [0.0, 0.8, 0.0], [0.1, 0.0, 1.2]]  # sheared, not axis-aligned
-    to_world[:3, 3] = (0.2, -0.1, 0.3)
-    return Medium("cloud", "grid", sigma_a=(0.3, 0.6, 1.0), sigma_s=(0.5, 0.4, 0.2), p0=(-1.0, -1.0, -1.0),
-                  p1=(1.0, 1.0, 1.0), to_world=to_world, program=program, program_density=density, **kw)
 
 
 def test_only_scenes_with_programs_get_the_procedural_table_type():

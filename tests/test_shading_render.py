@@ -6,51 +6,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from bench.program_cost import COLOR1, COLOR2, SCALE, SIZE, checker_program, plane_scene
 from renderer.compile import compile_scene
 from renderer.render import render
-from renderer.scene import (
-    Camera,
-    CornerAttribute,
-    Environment,
-    Film,
-    IntegratorSettings,
-    Lobe,
-    Material,
-    Mesh,
-    Scene,
-)
 from renderer.scenefile import load_scene, save_scene
-from renderer.shading.program import BIND_FIELDS, BIND_SET, OP, ShaderProgram
-
-COLOR1, COLOR2, SCALE = (0.8, 0.2, 0.1), (0.1, 0.3, 0.9), 4.0
-SIZE = 32
-
-
-def instr(op, dst, a=0, b=0, c=0, d=0, e=0, i0=0, i1=0, i2=0):
-    return [OP[op], dst, a, b, c, d, e, i0, i1, i2]
-
-
-def checker_program() -> ShaderProgram:
-    """Diffuse colour = Checker(UV, COLOR1, COLOR2, SCALE). Registers: 0-2 UV, 3-5 and 6-8
-    the colours, 9 the scale, 10-12 the result, 13 its factor."""
-    regs = np.zeros(14, np.float32)
-    regs[3:6], regs[6:9], regs[9] = COLOR1, COLOR2, SCALE
-    code = np.array([instr("attribute", 0, i0=0, i1=2), instr("checker", 10, a=0, b=3, c=6, d=9)], np.int32)
-    binds = np.array([[0, BIND_FIELDS.index("color"), 3, 10, BIND_SET]], np.int32)
-    return ShaderProgram(code, regs, binds, attributes=["uv:UVMap"])
-
-
-def plane_scene(program: ShaderProgram | None, spp: int = 64) -> Scene:
-    v = np.array([[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]], np.float32)
-    idx = np.array([[0, 1, 2], [0, 2, 3]], np.int32)
-    uv = ((v[:, :2] + 1) / 2)[idx].astype(np.float32)  # (T, 3, 2)
-    mesh = Mesh("plane", v, idx, ["m"], attributes=[CornerAttribute("uv:UVMap", uv)])
-    material = Material("m", lobes=[Lobe("diffuse", color=(0.5, 0.5, 0.5))], program=program)
-    camera = Camera(to_world=np.array([[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 5], [0, 0, 0, 1]], float),
-                    projection="orthographic", ortho_scale=2.0)
-    return Scene(camera=camera, film=Film(width=SIZE, height=SIZE),
-                 integrator=IntegratorSettings(spp=spp, max_bounces=2, seed=3),
-                 materials=[material], meshes=[mesh], environment=Environment((1.0, 1.0, 1.0)))
 
 
 def expected_albedo() -> np.ndarray:

@@ -1,6 +1,6 @@
 """Render a Haze scene folder with Cycles, timed: the Cycles side of the convergence benchmark.
 
-    .venv/bin/python tools/cycles_reference.py SCENE_DIR OUT_DIR --samples 1 2 4 --seeds 1 [--threads 2]
+    .venv/bin/python -m bench cycles_reference SCENE_DIR OUT_DIR --samples 1 2 4 --seeds 1 [--threads 2]
 
 The scene (renderer.scenefile format) is rebuilt in bpy with the same world coordinates the
 add-on exports (Blender's world space is the renderer's), then rendered once per (seed,
@@ -11,7 +11,7 @@ wall time of each render call (scene sync, BVH build, sampling, EXR write) goes 
 OUT_DIR/timings.json. A 1-sample warm-up render first loads Cycles' kernels, so the timings
 are those of a Blender session that has rendered before.
 
-A .blend instead of a scene folder (tools/blend_scene.py writes one beside its export) is
+A .blend instead of a scene folder (`python -m bench blend_scene` writes one beside its export) is
 rendered as it is, with Cycles configured the same way and --max-bounces as the limit.
 
 Supported: diffuse lobes, front/back/both-sided emission, homogeneous media (world or
@@ -23,6 +23,13 @@ Cube whose voxel centres are the grid's ((k + 1/2)/n in the grid's unit box), ea
 its value from a helper point mesh by nearest-point lookup, so Cycles interpolates the same
 voxel values trilinearly. Haze clamps to the edge voxels where Cycles fades to 0 over the
 outermost half voxel, so grids must be 0 on their faces (the paper's generator is).
+
+The command re-runs itself in a private Blender environment (bench.blender's); that re-run
+is the Blender side, and puts tests/ and examples/ on its own sys.path for the Blender-side
+helpers of tests/bpy_helpers.py (configure_cycles, render_exr, new_object: the tests' Cycles
+set-up) and examples/blender_cornell.py, as run_blender's scripts do. The process that
+starts it (a user's `python -m bench cycles_reference`, or bench/convergence.py) imports
+nothing from tests/.
 """
 
 from __future__ import annotations
@@ -37,27 +44,34 @@ from pathlib import Path
 
 import numpy as np
 
+from renderer.scene import Camera, Material, Medium, Mesh, Scene
+from renderer.scenefile import load_scene
+
 REPO = Path(__file__).resolve().parents[1]
-for _path in (REPO, REPO / "tests", REPO / "examples"):
-    if str(_path) not in sys.path:
-        sys.path.insert(0, str(_path))
-
-from renderer.scene import Camera, Material, Medium, Mesh, Scene  # noqa: E402
-from renderer.scenefile import load_scene  # noqa: E402
-
 ISOLATED = "HAZE_CYCLES_ISOLATED"
 
 
-def isolate_blender(script: str = __file__) -> None:
-    """Re-run `script` with private HOME / Blender user folders (bpy_helpers' environment),
-    so nothing of the developer's own Blender setup is read or changed."""
+def command(argv: list[str]) -> list[str]:
+    """The command line that renders: `python -m bench cycles_reference ARGV`, to run from the
+    repository root (bench/convergence.py runs it as a subprocess there)."""
+    return [sys.executable, "-m", "bench", "cycles_reference", *argv]
+
+
+def isolate_blender(argv: list[str]) -> None:
+    """Re-run the command with private HOME / Blender user folders (bench.blender's
+    environment), so nothing of the developer's own Blender setup is read or changed; in the
+    re-run (the Blender side), put tests/ and examples/ on sys.path for their Blender-side
+    helpers."""
     if os.environ.get(ISOLATED):
+        for path in (REPO / "tests", REPO / "examples"):
+            if str(path) not in sys.path:
+                sys.path.append(str(path))
         return
-    from bpy_helpers import blender_environment
+    from bench.blender import blender_environment
 
     env = blender_environment(Path(tempfile.mkdtemp(prefix="haze-cycles-")), None)
     env[ISOLATED] = "1"
-    os.execve(sys.executable, [sys.executable, script, *sys.argv[1:]], env)
+    os.execve(sys.executable, command(argv), env)
 
 
 # ---------------------------------------------------------------------------- bpy building
@@ -318,7 +332,8 @@ def timed_render(scene, path: Path, samples: int, max_bounces: int, seed: int, t
 
 
 def parse_arguments(argv: list[str]) -> argparse.Namespace:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(prog="python -m bench cycles_reference",
+                                     description=__doc__.splitlines()[0])
     parser.add_argument("scene", type=Path, help="a Haze scene folder (scene.json + arrays), or a .blend")
     parser.add_argument("out", type=Path)
     parser.add_argument("--samples", type=int, nargs="+", required=True)
@@ -349,10 +364,11 @@ def check_files() -> None:
                                f"({bpy.path.abspath(volume.filepath)})")
 
 
-def main(argv: list[str]) -> int:
-    isolate_blender()
-    arguments = parse_arguments(argv)
-    if arguments.scene.suffix == ".blend":  # an artist's scene as it is (tools/blend_scene.py)
+def main(argv: list[str] | None = None) -> int:
+    argv = sys.argv[1:] if argv is None else list(argv)
+    arguments = parse_arguments(argv)  # --help and bad arguments before any Blender
+    isolate_blender(argv)
+    if arguments.scene.suffix == ".blend":  # an artist's scene as it is (bench/blend_scene.py)
         import bpy
 
         bpy.ops.wm.open_mainfile(filepath=str(arguments.scene))
@@ -375,7 +391,3 @@ def main(argv: list[str]) -> int:
     timings = {"warmup_seconds": warmup, "threads": arguments.threads, "renders": renders}
     (arguments.out / "timings.json").write_text(json.dumps(timings, indent=1))
     return 0
-
-
-if __name__ == "__main__":
-    raise SystemExit(main(sys.argv[1:]))

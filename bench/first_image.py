@@ -1,6 +1,6 @@
 """Time to first image, cold and warm, for the command line and for F12 (issue 19's closing note).
 
-    .venv/bin/python tools/first_image.py [--scenes surface,fog,smoke] [--only cli|f12]
+    .venv/bin/python -m bench first_image [--scenes surface,fog,smoke] [--only cli|f12]
                                           [--size 128] [--spp N] [--json out.json]
 
 Scenes (all --size x --size pixels, default 128x128, the examples' default size):
@@ -57,9 +57,9 @@ from dataclasses import asdict, dataclass, field
 from datetime import UTC, datetime
 from pathlib import Path
 
+from bench.installed import blender_environment
+
 REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO))
-from bench.installed import blender_environment  # noqa: E402
 
 SCENES = ("surface", "fog", "smoke")
 DEFAULT_TIMEOUT = 900.0
@@ -71,7 +71,7 @@ COMPILED_LINE = re.compile(rb"compiled kernels in ([0-9.]+) s")
 COMPILING = b"compiling kernels"
 
 F12_SCRIPT = r'''
-"""Blender side of tools/first_image.py: build one scene, time one 1-spp F12."""
+"""Blender side of bench/first_image.py: build one scene, time one 1-spp F12."""
 import json
 import sys
 import time
@@ -368,8 +368,8 @@ def git_commit() -> str:
 # ------------------------------------------------------------------------------ main
 
 
-def parse_arguments(argv: list[str]) -> argparse.Namespace:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def parse_arguments(argv: list[str] | None) -> argparse.Namespace:
+    parser = argparse.ArgumentParser(prog="python -m bench first_image", description=__doc__.splitlines()[0])
     parser.add_argument("--scenes", default=",".join(SCENES), help="comma-separated: surface,fog,smoke")
     parser.add_argument("--only", choices=("cli", "f12"), help="measure only the CLI or only F12")
     parser.add_argument("--size", type=int, default=128, help="image width and height (default 128)")
@@ -408,7 +408,7 @@ def measure(arguments: argparse.Namespace, root: Path) -> list[Run]:
     return runs
 
 
-def main(argv: list[str]) -> int:
+def main(argv: list[str] | None = None) -> int:
     arguments = parse_arguments(argv)
     load_start = os.getloadavg()
     started = datetime.now(UTC)
@@ -421,7 +421,6 @@ def main(argv: list[str]) -> int:
         scratch = root / "cache-scratch"
         scratch.mkdir()
         os.environ["HAZE_CACHE_DIR"] = str(scratch)
-        sys.path[:0] = [str(REPO)]
         runs = measure(arguments, root)
     load_end = os.getloadavg()
     print(f"load average at end: {load_end[0]:.2f} {load_end[1]:.2f} {load_end[2]:.2f}")
@@ -441,7 +440,3 @@ def main(argv: list[str]) -> int:
         arguments.json.write_text(json.dumps(report, indent=2) + "\n")
         print(f"wrote {arguments.json}")
     return 1 if any(run.problem for run in runs) else 0
-
-
-if __name__ == "__main__":
-    sys.exit(main(sys.argv[1:]))
