@@ -10,10 +10,10 @@ import sys
 
 from . import bootstrap
 
+bootstrap.make_renderer_importable(__file__)
 if "bpy" in sys.modules:  # loaded into Blender (not merely imported by a unit test)
     # Before anything can import numba: the command line's cache folder, not the add-on's.
     bootstrap.configure_numba_cache()
-bootstrap.make_renderer_importable(__file__)
 
 # Used when enabled as a legacy add-on from a clone; extensions read blender_manifest.toml.
 bl_info = {

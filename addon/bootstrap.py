@@ -1,18 +1,20 @@
-"""Prepare the Python environment before anything imports numba or the renderer.
+"""Prepare the Python environment before anything imports numba or the renderer's kernels.
 
-Two things must happen first, at add-on import time:
+Two things must happen first, at add-on import time, in this order:
 
-* The kernel cache is the command line's (HAZE_CACHE_DIR, else NUMBA_CACHE_DIR, else
-  ~/.cache/haze): one compile per machine and user, whether the kernels are first needed by
-  `python -m renderer`, F12 in an installed extension or the add-on enabled from a clone.
-  Numba would otherwise write compiled functions next to their sources, i.e. into the
-  installed extension, which may be read-only and is wiped on every update.
 * The `renderer` package must be importable. An installed extension ships it as a bundled
   wheel (Blender puts the wheel's folder on sys.path); a development checkout enabled from a
   clone has it next to this add-on folder, so the repository root is added to sys.path.
+* The kernel cache is the command line's (renderer.cache_folder: HAZE_CACHE_DIR, else
+  NUMBA_CACHE_DIR, else ~/.cache/haze): one compile per machine and user, whether the
+  kernels are first needed by `python -m renderer`, F12 in an installed extension or the
+  add-on enabled from a clone. Numba would otherwise write compiled functions next to their
+  sources, i.e. into the installed extension, which may be read-only and is wiped on every
+  update.
 
-This module imports neither numba nor the renderer itself: registering the add-on stays fast
-and Blender starts even when the renderer is broken; the render reports the problem instead.
+This module imports no numba and of the renderer only renderer.cache_folder (standard
+library only): registering the add-on stays fast and Blender starts even when the renderer
+is broken; the render reports the problem instead.
 """
 
 from __future__ import annotations
@@ -23,28 +25,19 @@ import sys
 from pathlib import Path
 
 NUMBA_CACHE_ENV = "NUMBA_CACHE_DIR"
-HAZE_CACHE_ENV = "HAZE_CACHE_DIR"
 
 
-def haze_cache_root() -> Path:
-    """The folder the command line caches kernels under: renderer.kernels.cache.cache_root's rule.
-
-    Repeated here because that module imports numba, which registration must not do
-    (tests/test_addon_bootstrap.py checks that both give the same folder).
-    """
-    for name in (HAZE_CACHE_ENV, NUMBA_CACHE_ENV):
-        chosen = os.environ.get(name)
-        if chosen:
-            return Path(chosen)
-    if sys.platform == "win32":
-        base = os.environ.get("LOCALAPPDATA") or str(Path.home() / "AppData" / "Local")
-        return Path(base) / "haze"
-    if sys.platform == "darwin":
-        return Path.home() / "Library" / "Caches" / "haze"
-    return Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "haze"
+def haze_cache_root() -> Path | None:
+    """The folder the command line caches kernels under (renderer.cache_folder's rule, which
+    imports no numba), or None when the renderer cannot be imported."""
+    try:
+        from renderer.cache_folder import cache_root
+    except ImportError:
+        return None  # renderer_problem() says why at render time
+    return cache_root()
 
 
-def configure_numba_cache() -> Path:
+def configure_numba_cache() -> Path | None:
     """Share the command line's kernel cache, unless the user chose a cache folder.
 
     The renderer's kernels go to `<root>/kernels-<build key>` whatever NUMBA_CACHE_DIR says
@@ -54,7 +47,7 @@ def configure_numba_cache() -> Path:
     us (by another add-on), its configuration is re-read so the setting still applies.
     """
     root = haze_cache_root()
-    if os.environ.get(NUMBA_CACHE_ENV):
+    if root is None or os.environ.get(NUMBA_CACHE_ENV):
         return root  # the user's own choice wins (the root follows it unless HAZE_CACHE_DIR is set)
     root.mkdir(parents=True, exist_ok=True)
     os.environ[NUMBA_CACHE_ENV] = str(root)

@@ -14,9 +14,8 @@ a new, empty folder, and identical sources share one folder wherever they are in
 Numba's index also keys every entry by CPU name and features, so machines of different
 kinds sharing a home folder never load each other's code.
 
-The root is HAZE_CACHE_DIR if set, else NUMBA_CACHE_DIR if set (the user's or a test's
-choice), else the per-user cache folder (~/.cache/haze on Linux, %LOCALAPPDATA%\\haze on
-Windows, ~/Library/Caches/haze on macOS).
+The root is renderer.cache_folder.cache_root(): HAZE_CACHE_DIR if set, else
+NUMBA_CACHE_DIR if set, else the per-user cache folder (~/.cache/haze on Linux).
 
 function_lock(name) serialises compiling one function between processes: the first process
 to need it compiles it (and saves it) while the others wait, then load it from the cache.
@@ -40,23 +39,10 @@ import numba
 from numba.core import event
 from numba.core.caching import CacheImpl, _CacheLocator
 
+from ..cache_folder import cache_root  # the one rule, shared with the add-on
+
 PACKAGE_DIR = Path(__file__).resolve().parents[1]  # the renderer package
-CACHE_ENV = "HAZE_CACHE_DIR"
 LOCK_FOLDER = "locks"
-
-
-def cache_root() -> Path:
-    """Where Haze keeps its caches (every build key's folder lies below it)."""
-    for name in (CACHE_ENV, "NUMBA_CACHE_DIR"):
-        chosen = os.environ.get(name)
-        if chosen:
-            return Path(chosen)
-    if sys.platform == "win32":
-        base = os.environ.get("LOCALAPPDATA") or str(Path.home() / "AppData" / "Local")
-        return Path(base) / "haze"
-    if sys.platform == "darwin":
-        return Path.home() / "Library" / "Caches" / "haze"
-    return Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "haze"
 
 
 def build_key(package_dir: Path = PACKAGE_DIR) -> str:
