@@ -24,10 +24,10 @@ grazing jumps from 0 at eta = 1 to 1 for any eta > 1); below 1e-3 away from graz
 """
 
 import math
-import os
 
 import numpy as np
 
+from renderer.bsdfs import baked
 from renderer.bsdfs.fresnel import fresnel_dielectric
 from renderer.bsdfs.microfacet import ggx_G1, ggx_G2, ggx_sample_visible_normal, reflect
 from renderer.kernels import kernel
@@ -38,7 +38,7 @@ N_S = 32
 N_ROUGH = 24
 _S_MAX = (COAT_ETA_MAX - 1.0) / (COAT_ETA_MAX + 1.0)
 _N_QUAD = 384  # midpoint visible-normal quadrature, _N_QUAD^2 points per entry
-_TABLE_PATH = os.path.join(os.path.dirname(__file__), "coat_albedo.npz")
+_TABLE_PATH = baked.table_path(__file__, "coat_albedo")
 
 
 @kernel
@@ -113,20 +113,12 @@ def build_tables(n_quad):
     return e, e_avg
 
 
-def _load_tables():
-    with np.load(_TABLE_PATH) as z:
-        e, e_avg = z["e"], z["e_avg"]
-    assert e.shape == (N_ROUGH, N_S, N_MU) and e_avg.shape == (N_ROUGH, N_S), "stale coat table"
-    return np.ascontiguousarray(e, np.float64), np.ascontiguousarray(e_avg, np.float64)
-
-
 if __name__ == "__main__":
     _e, _e_avg = build_tables(_N_QUAD)
-    np.savez_compressed(_TABLE_PATH, e=_e, e_avg=_e_avg)
-    print("wrote", _TABLE_PATH)
+    baked.save(_TABLE_PATH, e=_e, e_avg=_e_avg)
 else:
     # Global arrays are frozen into the kernels below as constants when they compile.
-    COAT_E, COAT_E_AVG = _load_tables()
+    COAT_E, COAT_E_AVG = baked.load(_TABLE_PATH, {"e": (N_ROUGH, N_S, N_MU), "e_avg": (N_ROUGH, N_S)})
 
 
 @kernel

@@ -22,17 +22,17 @@ the compiled kernels).
 """
 
 import math
-import os
 
 import numpy as np
 
+from renderer.bsdfs import baked
 from renderer.bsdfs.microfacet import ggx_G1, ggx_G2, ggx_sample_visible_normal, reflect
 from renderer.kernels import inline_kernel, kernel
 
 N_NODES = 32
 _N_QUAD = 256  # visible-normal quadrature per node, _N_QUAD^2 points
 _N_MU = 128  # midpoint rule in mu for E_avg
-_TABLE_PATH = os.path.join(os.path.dirname(__file__), "ggx_energy.npz")
+_TABLE_PATH = baked.table_path(__file__, "ggx_energy")
 
 
 @kernel
@@ -66,21 +66,13 @@ def build_tables(e, e_avg, n_quad, n_mu):
         e_avg[x] = 2.0 * acc / n_mu
 
 
-def _load_tables():
-    with np.load(_TABLE_PATH) as z:
-        e, e_avg = z["E"], z["E_avg"]
-    assert e.shape == (N_NODES, N_NODES) and e_avg.shape == (N_NODES,), "stale GGX energy table"
-    return np.ascontiguousarray(e, np.float64), np.ascontiguousarray(e_avg, np.float64)
-
-
 if __name__ == "__main__":
     _e, _avg = np.zeros((N_NODES, N_NODES)), np.zeros(N_NODES)
     build_tables(_e, _avg, _N_QUAD, _N_MU)
-    np.savez_compressed(_TABLE_PATH, E=_e, E_avg=_avg)
-    print("wrote", _TABLE_PATH)
+    baked.save(_TABLE_PATH, E=_e, E_avg=_avg)
 else:
     # Global arrays are frozen into the kernels below as constants when they compile.
-    GGX_E, GGX_E_AVG = _load_tables()
+    GGX_E, GGX_E_AVG = baked.load(_TABLE_PATH, {"E": (N_NODES, N_NODES), "E_avg": (N_NODES,)})
 
 
 @inline_kernel

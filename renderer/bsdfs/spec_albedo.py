@@ -29,17 +29,17 @@ compiled kernels).
 """
 
 import math
-import os
 
 import numpy as np
 
+from renderer.bsdfs import baked
 from renderer.bsdfs.fresnel import fresnel_dielectric
 from renderer.bsdfs.microfacet import ggx_sample_visible_normal, reflect
 from renderer.kernels import inline_kernel, kernel
 
 N_NODES = 16  # per axis: roughness, mu, z
 _N_QUAD = 512  # midpoint visible-normal quadrature, _N_QUAD^2 points per node
-_TABLE_PATH = os.path.join(os.path.dirname(__file__), "spec_albedo.npz")
+_TABLE_PATH = baked.table_path(__file__, "spec_albedo")
 
 
 @kernel
@@ -93,21 +93,13 @@ def build_table(s, n_quad):
                 s[k, j, i] = remapped_fresnel_mean(rough, mu, eta, n_quad)
 
 
-def _load_table():
-    with np.load(_TABLE_PATH) as z:
-        s = z["s"]
-    assert s.shape == (N_NODES, N_NODES, N_NODES), "stale specular albedo table"
-    return np.ascontiguousarray(s, np.float64)
-
-
 if __name__ == "__main__":
     _s = np.zeros((N_NODES, N_NODES, N_NODES))
     build_table(_s, _N_QUAD)
-    np.savez_compressed(_TABLE_PATH, s=_s)
-    print("wrote", _TABLE_PATH)
+    baked.save(_TABLE_PATH, s=_s)
 else:
     # A global array is frozen into the kernels below as a constant when they compile.
-    SPEC_S = _load_table()
+    (SPEC_S,) = baked.load(_TABLE_PATH, {"s": (N_NODES, N_NODES, N_NODES)})
 
 
 @inline_kernel
