@@ -19,6 +19,7 @@ COMMANDS = {
     "kernel_profile": "bench.kernel_profile", "hdri_variance": "bench.hdri_variance",
     "preview_time": "bench.preview_time", "program_cost": "bench.program_cost",
     "procedural_tracking": "bench.procedural_tracking",
+    "procedural_volume_cycles": "bench.procedural_volume_cycles",
     # developer tools
     "golden": "bench.golden", "import_cycles": "bench.import_cycles",
     "cycles_reference": "bench.cycles_reference", "blend_scene": "bench.blend_scene",
