@@ -250,7 +250,6 @@ def main(argv: list[str]) -> int:
 
 
 def _mean(path: Path) -> np.ndarray:
-    sys.path.insert(0, str(REPO))
     from renderer.imageio import read_exr
 
     return read_exr(str(path))[..., :3].reshape(-1, 3).mean(axis=0)
