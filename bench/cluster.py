@@ -22,14 +22,11 @@ from __future__ import annotations
 
 import argparse
 import time
-from pathlib import Path
 
 from examples.scenes import cornell_box, cornell_fog
 from renderer.cluster import LOCAL, connect, shutdown_clusters
 from renderer.render import render_progressive
 from renderer.scene import Scene
-
-REPO = Path(__file__).resolve().parents[1]
 
 
 def fog(size: int, spp: int, seed: int = 0) -> Scene:

@@ -14,7 +14,6 @@ from __future__ import annotations
 import argparse
 import time
 from collections import Counter
-from pathlib import Path
 
 from bench.scenes import SCENES
 from bench.speed import _scenes
@@ -22,8 +21,6 @@ from renderer.compile import compile_scene
 from renderer.film import Film
 from renderer.integrator import wavefront
 from renderer.integrator.wavefront import Tracer
-
-REPO = Path(__file__).resolve().parents[1]
 
 
 class _TimedKernels:

@@ -38,8 +38,6 @@ from pathlib import Path
 
 from bench.blender import run_blender, shared_numba_cache
 
-REPO = Path(__file__).resolve().parents[1]
-
 BODY = r'''
 import cProfile
 import io

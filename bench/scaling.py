@@ -20,7 +20,6 @@ from __future__ import annotations
 import argparse
 import time
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 
@@ -35,7 +34,6 @@ BALL_CENTER = (0.0, -0.4, 0.0)
 BALL_HALF = 0.55
 SMALL_SIZE = 64  # image size of the sweeps that are not about resolution
 
-REPO = Path(__file__).resolve().parents[1]
 
 
 @dataclass
