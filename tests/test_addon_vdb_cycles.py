@@ -30,8 +30,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from bpy_helpers import assert_agree, compare_images, run_blender, shared_numba_cache
 
+from bench.blender import run_blender, shared_numba_cache
+from bench.comparison import assert_agree, compare_images
 from renderer.imageio import read_exr
 
 pytestmark = [pytest.mark.bpy, pytest.mark.slow]
