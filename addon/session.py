@@ -44,7 +44,7 @@ PREVIEW_SAMPLES = 16
 PREVIEW_MAX_BOUNCES = 4
 # Previews of scenes with media (a volume material) take half the samples: their samples
 # cost 3-4x a surface's, and 16 of them made a volume preview take 5.3 s warm against a
-# surface's 1.7-2.6 s (128x128 plus its icon, at load 12: tools/preview_time.py).
+# surface's 1.7-2.6 s (128x128 plus its icon, at load 12: python -m bench preview_time).
 PREVIEW_VOLUME_SAMPLES = 8
 
 _active_renders = 0  # RenderSessions running in this process (the cache must not be cleared then)

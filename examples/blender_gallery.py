@@ -56,7 +56,7 @@ from examples.scenes import FIG1_SIGMA_A, FIG1_SIGMA_S, icosphere  # noqa: E402
 
 # examples.media_scenes (Fig. 6 to 8 constants) is imported by the builders that need it: it
 # imports numba and the renderer's kernels, which the other scenes must not load before their
-# render (tools/first_image.py times F12 as a user gets it, renderer not yet imported).
+# render (python -m bench first_image times F12 as a user gets it, renderer not yet imported).
 
 OUT = REPO / "out" / "blender_gallery"
 PREVIEW_SAMPLES = {  # samples per pixel at the preview size: each scene well under 2 minutes

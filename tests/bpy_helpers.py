@@ -8,8 +8,7 @@ builders and render helpers: enable_addon, addon_module, configure_cycles, rende
 
 The host side (run_blender, shared_numba_cache, isolated_site, ...) is bench/blender.py and
 the statistical comparison of two renderers (compare_images, assert_agree) is
-bench/comparison.py; tests import them from there. Their old names here still resolve on the
-host (module __getattr__ below) for tests written before the move.
+bench/comparison.py; tests import them from there.
 """
 
 from __future__ import annotations
@@ -23,20 +22,6 @@ REPO = Path(__file__).resolve().parents[1]
 
 ADDON_MODE_ENV = "HAZE_TEST_ADDON"  # bench.blender.ADDON_MODE_ENV (not imported: Blender side)
 EXTENSION_PACKAGE = "bl_ext.user_default.haze"  # bench.installed.PACKAGE (not imported: Blender side)
-
-_HOST = ("PYTHON", "TESTS", "EXAMPLES", "BUNDLED_MODULES", "PRELUDE", "EPILOGUE", "BlenderRun",
-         "blender_environment", "shared_numba_cache", "isolated_site", "addon_mode", "run_blender")
-_STATISTICS = ("Comparison", "block_sums", "mean_and_variance", "FLOAT32_PRECISION", "compare_images",
-               "z_threshold", "chi_square_threshold", "assert_agree")
-_MOVED = {**dict.fromkeys(_HOST, "bench.blender"), **dict.fromkeys(_STATISTICS, "bench.comparison")}
-
-
-def __getattr__(name: str):
-    """Host side only: the helpers that moved to bench/ (the repository root on sys.path)."""
-    if name in _MOVED:
-        return getattr(importlib.import_module(_MOVED[name]), name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
 
 # ------------------------------------------------------------------------------ Blender side
 

@@ -16,7 +16,7 @@ path, as scalar code (the homogeneous medium segments as SIMD batches, nee_batch
   splat            film.py          add finished paths to the film
 
 The driver calls them through this module only, so a tool can stand in for all of them at
-once (tools/kernel_profile.py times each call; renderer.bench.speed swaps in a surface stage
+once (python -m bench kernel_profile times each call; renderer.bench.speed swaps in a surface stage
 compiled without media).
 
 Conventions: `max_bounces` counts scattering events exactly like Cycles: the vertex a path

@@ -29,7 +29,7 @@ JIT_OPTIONS = {"cache": True, "error_model": "numpy", "fastmath": {"contract"}, 
 # re-typed and SSA-converted a fresh copy of the callee's Python at every call site (and of
 # everything inlined into it in turn): shade_surface spent 85 of its 118 s of compile there.
 # Measured (fog box, cold cache, CPU seconds to the first pass, machine loaded): 180 s -> 77 s;
-# samples/s unchanged within this VM's noise; tools/golden_images.py bit-identical (41 of 41).
+# samples/s unchanged within this VM's noise; python -m bench golden bit-identical (41 of 41).
 # A function that returns an array cannot be a separate function without numba's reference
 # counting (off here), so such one-liners are written out where they are used.
 # `kernel` leaves inlining to LLVM's cost model: for large helpers off the hot path (the
