@@ -58,29 +58,31 @@ from numba.core import types
 from numba.extending import overload
 
 from renderer.kernels import JIT_OPTIONS, inline_kernel, kernel
-from renderer.kernels import fastmath as fm
 from renderer.kernels.rng import hashed_uniform
 from renderer.media.emission import stack_emission
 from renderer.media.grid import to_unit_point, to_unit_vector
 from renderer.media.layout import DDA_MAJ, DDA_MEDIUM
+from renderer.media.majorant_walk import (
+    KILLED,
+    STOPPED,
+    WALK_ON,
+    decay,
+    decay_both,
+    emission_sampling_rate,
+    exponential_depth,
+    make_walk,
+    mix,
+    roulette,
+    scaled,
+    sigma_at,
+    start_walk,
+    unit_ray,
+)
 from renderer.media.regular import optical_depths, sample_flight
 from renderer.media.spectral import pick_channel
 from renderer.media.stack import EMPTY, MAX_STACK, stack_has_emission
 from renderer.media.table import is_grid, sigma_a, sigma_s
-from renderer.media.tracking import (
-    HOMOGENEOUS_EMISSION_COLLISIONS,
-    MAX_COLLISIONS,
-    _advance_walk,
-    _decay,
-    _mix,
-    _piece,
-    _roulette,
-    _scaled,
-    _sigma_at,
-    _start_walk,
-    _unit_ray,
-    track_free_flight,
-)
+from renderer.media.tracking import track_free_flight
 
 _OVERLOAD_OPTIONS = {k: v for k, v in JIT_OPTIONS.items() if k != "cache"}
 
@@ -185,104 +187,112 @@ def _scatter_weight(f, q, p, ss, sigma):
     return (f[0] * ss[0] / denom, f[1] * ss[1] / denom, f[2] * ss[2] / denom)
 
 
+# Scatter tracking's decisions (majorant_walk.make_walk). env: (hom_s, hom_a, folded);
+# state: (f, q, Le, ta), ta where f's absorption was last applied (exact mode: lazily, see
+# the docstring); at a scatter f is replaced by the weight.
+
+@inline_kernel
+def _scatter_regular(mt, stack, o, d, t, end, p, key, dim, c, rows, j, hom_sigma_t, env, state):
+    """Regular tracking of sigma_t across the piece (see the docstring)."""
+    _, hom_a, folded = env
+    f, q, le, ta = state
+    if not folded:  # (never: no regular pieces where emission is sampled)
+        f = _absorb(f, _absorption(mt, stack, o, d, ta, t, hom_a))
+    m, uo, ud, st_grid = unit_ray(mt, rows, j, o, d)
+    depth = exponential_depth(key, dim)
+    dim += 1
+    t, hit, tau = sample_flight(mt, m, uo, ud, t, end, depth, c, st_grid, hom_sigma_t)
+    ta = t  # tau_t holds the absorption of the regular piece
+    # f and q share the factor exp(-tau_t) here: drop the common exp(-min tau) first so
+    # that neither underflows, then renormalise both by sum p q.
+    low = min(tau[0], tau[1], tau[2])
+    g = (math.exp(low - tau[0]), math.exp(low - tau[1]), math.exp(low - tau[2]))
+    f = _times(f, g)
+    q = _times(q, g)
+    s = mix(p, q)
+    f = scaled(f, s)
+    q = scaled(q, s)
+    if hit:
+        x = (o[0] + d[0] * t, o[1] + d[1] * t, o[2] + d[2] * t)
+        sa, ss = sigma_at(mt, stack, x)
+        st = (sa[0] + ss[0], sa[1] + ss[1], sa[2] + ss[2])
+        if mix(p, _times(q, st)) > 0.0:  # (0 only for a zero-length flight onto zero density)
+            return t, STOPPED, (_scatter_weight(f, q, p, ss, st), q, le, ta), dim
+    return t, WALK_ON, (f, q, le, ta), dim
+
+
+@inline_kernel
+def _scatter_majorant_of(mt, rows, n, mu_t, env):
+    """Emission sampled (folded): the sigma_t majorant; else the sigma_s one."""
+    hom_s, _, folded = env
+    return mu_t if folded else _scatter_majorant(mt, rows, n, hom_s)
+
+
+@inline_kernel
+def _scatter_collide(mt, stack, o, d, t, x, mu, dt, p, c, key, dim, rate, env, state):
+    _, hom_a, folded = env
+    f, q, le, ta = state
+    f = decay(f, mu, dt)
+    q = decay(q, mu, dt)
+    sa, ss = sigma_at(mt, stack, x)
+    if folded:
+        e = stack_emission(mt, stack, x)
+        denom = mix(p, _times(q, mu))
+        le = (le[0] + e[0] * f[0] / denom, le[1] + e[1] * f[1] / denom, le[2] + e[2] * f[2] / denom)
+    u = hashed_uniform(key, dim)
+    dim += 1
+    if u * mu[c] < ss[c]:
+        if not folded:
+            f = _absorb(f, _absorption(mt, stack, o, d, ta, t, hom_a))
+        return STOPPED, (_scatter_weight(f, q, p, ss, ss), q, le, ta), dim
+    sn = _null(mu, ss)
+    q = _times(q, sn)
+    if folded:  # channel k's own null coefficient mu_k - sigma_t,k
+        f = _times(f, _null(mu, (sa[0] + ss[0], sa[1] + ss[1], sa[2] + ss[2])))
+    else:
+        f = _times(f, sn)
+    s = mix(p, q)
+    f = scaled(f, s)
+    q = scaled(q, s)
+    # (exact mode: f still lacks the absorption over [ta, t]; roulette on this
+    # upper bound is as unbiased, only less eager.)
+    f, alive, dim = roulette(f, key, dim)
+    if not alive:
+        return KILLED, ((0.0, 0.0, 0.0), q, le, ta), dim
+    return WALK_ON, (f, q, le, ta), dim
+
+
+@inline_kernel
+def _scatter_passed(mu, dt, p, state):
+    f, q, le, ta = state
+    f, q = decay_both(f, q, mu, dt, p)
+    return f, q, le, ta
+
+
+_scatter_walk = make_walk(_scatter_regular, _scatter_majorant_of, _scatter_collide, _scatter_passed)
+
+
 @kernel
 def scatter_track(mt, stack, o, d, t0, t1, p, key, dim, with_emission, rows):
     """Scatter tracking with spectral MIS over [t0, t1): (t, scattered, weight3, Le3, dim),
     as tracking.delta_track. A walk ended by Russian roulette returns weight (0, 0, 0)."""
-    hom_sigma_t, hom_emits, n = _start_walk(mt, stack, o, d, t0, rows)
+    hom_sigma_t, hom_emits, n = start_walk(mt, stack, o, d, t0, rows)
     hom_s, hom_a = _homogeneous_parts(mt, stack)
     folded = with_emission  # absorption by null-collision ratios, not by its integral
-    rate = -1.0
-    if with_emission:
-        rate = 0.0
-        if hom_emits and t1 - t0 < math.inf:
-            rate = HOMOGENEOUS_EMISSION_COLLISIONS / (t1 - t0)
+    rate = emission_sampling_rate(with_emission, hom_emits, t0, t1)
     q = (1.0 if p[0] > 0.0 else 0.0, 1.0 if p[1] > 0.0 else 0.0, 1.0 if p[2] > 0.0 else 0.0)
-    q = _scaled(q, _mix(p, q))
-    f = q
-    le0 = le1 = le2 = 0.0
+    q = scaled(q, mix(p, q))
     c = pick_channel(p, hashed_uniform(key, dim))
     dim += 1
-    t = t0
-    ta = t0  # exact mode: f holds the absorption up to ta (applied lazily, see the docstring)
-    collisions = 0
-    while t < t1:
-        mu_t, end, ex = _piece(mt, rows, n, hom_sigma_t, rate)
-        end = min(end, t1)
-        if ex >= 0:  # regular tracking of sigma_t across the piece (see the docstring)
-            if not folded:  # (never: no regular pieces where emission is sampled)
-                f = _absorb(f, _absorption(mt, stack, o, d, ta, t, hom_a))
-            m, uo, ud, st_grid = _unit_ray(mt, rows, ex, o, d)
-            depth = -fm.log1p(-hashed_uniform(key, dim))
-            dim += 1
-            t, hit, tau = sample_flight(mt, m, uo, ud, t, end, depth, c, st_grid, hom_sigma_t)
-            ta = t  # tau_t holds the absorption of the regular piece
-            # f and q share the factor exp(-tau_t) here: drop the common exp(-min tau) first so
-            # that neither underflows, then renormalise both by sum p q.
-            low = min(tau[0], tau[1], tau[2])
-            g = (math.exp(low - tau[0]), math.exp(low - tau[1]), math.exp(low - tau[2]))
-            f = _times(f, g)
-            q = _times(q, g)
-            s = _mix(p, q)
-            f = _scaled(f, s)
-            q = _scaled(q, s)
-            if hit:
-                x = (o[0] + d[0] * t, o[1] + d[1] * t, o[2] + d[2] * t)
-                sa, ss = _sigma_at(mt, stack, x)
-                st = (sa[0] + ss[0], sa[1] + ss[1], sa[2] + ss[2])
-                if _mix(p, _times(q, st)) > 0.0:  # (0 only for a zero-length flight onto zero density)
-                    return t, True, _scatter_weight(f, q, p, ss, st), (le0, le1, le2), dim
-        else:
-            mu = mu_t if folded else _scatter_majorant(mt, rows, n, hom_s)
-            while True:
-                dt = math.inf
-                if mu[c] > 0.0:
-                    dt = -fm.log1p(-hashed_uniform(key, dim)) / mu[c]
-                    dim += 1
-                if t + dt >= end or collisions >= MAX_COLLISIONS:
-                    f = _decay(f, mu, end - t)
-                    q = _decay(q, mu, end - t)
-                    s = _mix(p, q)
-                    f = _scaled(f, s)
-                    q = _scaled(q, s)
-                    t = end
-                    break
-                collisions += 1
-                f = _decay(f, mu, dt)
-                q = _decay(q, mu, dt)
-                t += dt
-                x = (o[0] + d[0] * t, o[1] + d[1] * t, o[2] + d[2] * t)
-                sa, ss = _sigma_at(mt, stack, x)
-                if folded:
-                    e = stack_emission(mt, stack, x)
-                    denom = _mix(p, _times(q, mu))
-                    le0 += e[0] * f[0] / denom
-                    le1 += e[1] * f[1] / denom
-                    le2 += e[2] * f[2] / denom
-                u = hashed_uniform(key, dim)
-                dim += 1
-                if u * mu[c] < ss[c]:
-                    if not folded:
-                        f = _absorb(f, _absorption(mt, stack, o, d, ta, t, hom_a))
-                    return t, True, _scatter_weight(f, q, p, ss, ss), (le0, le1, le2), dim
-                sn = _null(mu, ss)
-                q = _times(q, sn)
-                if folded:  # channel k's own null coefficient mu_k - sigma_t,k
-                    f = _times(f, _null(mu, (sa[0] + ss[0], sa[1] + ss[1], sa[2] + ss[2])))
-                else:
-                    f = _times(f, sn)
-                s = _mix(p, q)
-                f = _scaled(f, s)
-                q = _scaled(q, s)
-                # (exact mode: f still lacks the absorption over [ta, t]; roulette on this
-                # upper bound is as unbiased, only less eager.)
-                f, alive, dim = _roulette(f, key, dim)
-                if not alive:
-                    return t, False, (0.0, 0.0, 0.0), (le0, le1, le2), dim
-        _advance_walk(mt, rows, n, t)
+    env = (hom_s, hom_a, folded)
+    state = (q, q, (0.0, 0.0, 0.0), t0)  # f = q at the start
+    t, event, (f, _, le, ta), dim = _scatter_walk(mt, stack, o, d, t0, t1, p, key, dim, c, rows, n,
+                                                  hom_sigma_t, rate, env, state)
+    if event != WALK_ON:
+        return t, event == STOPPED, f, le, dim
     if not folded:
         f = _absorb(f, _absorption(mt, stack, o, d, ta, t1, hom_a))
-    return t1, False, f, (le0, le1, le2), dim
+    return t1, False, f, le, dim
 
 
 def free_flight(mt, stack, o, d, tmax, p, key, dim):

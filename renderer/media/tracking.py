@@ -39,167 +39,89 @@ import math
 
 import numpy as np
 
-from renderer.kernels import fastmath as fm
 from renderer.kernels import inline_kernel, kernel
 from renderer.kernels.rng import hashed_uniform
 from renderer.media.emission import stack_emission
-from renderer.media.grid import medium_density, to_unit_point, to_unit_vector
-from renderer.media.homogeneous import optical_depth
-from renderer.media.layout import DDA_EMITS, DDA_END, DDA_EXACT, DDA_MAJ, DDA_MEDIUM
-from renderer.media.majorant import dda_advance, dda_init
+from renderer.media.majorant_walk import (
+    KILLED,
+    STOPPED,
+    WALK_ON,
+    attenuated,
+    decay,
+    decay_both,
+    emission_sampling_rate,
+    exponential_depth,
+    make_walk,
+    mix,
+    roulette,
+    scaled,
+    sigma_at,
+    sigma_t_majorant,
+    start_walk,
+    unit_ray,
+)
 from renderer.media.regular import optical_depths, sample_flight
 from renderer.media.spectral import THIRD, pick_channel
-from renderer.media.stack import EMPTY, MAX_STACK, stack_has_emission
-from renderer.media.table import emission_rate, emits, is_grid, sigma_a, sigma_s, sigma_t
+from renderer.media.stack import stack_has_emission
 
-RR_THRESHOLD = 0.1
-# Tentative collisions spent on a segment inside an emitting homogeneous entry of a grid
-# stack (its emission is constant: a few samples of the segment suffice).
-HOMOGENEOUS_EMISSION_COLLISIONS = 4.0
-# Safety net against a walk that cannot advance (t + dt == t at absurd distances).
-MAX_COLLISIONS = 10_000_000
+_sigma_at = sigma_at  # (the name tests know it by)
+
+
+# Delta tracking's decisions (majorant_walk.make_walk). state: (q, Le); at a collision q is
+# replaced by the scattering weight.
+
+@inline_kernel
+def _delta_regular(mt, stack, o, d, t, end, p, key, dim, c, rows, j, hom_sigma_t, env, state):
+    q, le = state
+    m, uo, ud, st_grid = unit_ray(mt, rows, j, o, d)
+    depth = exponential_depth(key, dim)
+    dim += 1
+    t, hit, tau = sample_flight(mt, m, uo, ud, t, end, depth, c, st_grid, hom_sigma_t)
+    q = attenuated(q, tau, p)
+    if hit:
+        x = (o[0] + d[0] * t, o[1] + d[1] * t, o[2] + d[2] * t)
+        sa, ss = sigma_at(mt, stack, x)
+        st = (sa[0] + ss[0], sa[1] + ss[1], sa[2] + ss[2])
+        denom = p[0] * q[0] * st[0] + p[1] * q[1] * st[1] + p[2] * q[2] * st[2]
+        if denom > 0.0:  # (0 only for a zero-length flight onto zero density: walk on)
+            w = (q[0] * ss[0] / denom, q[1] * ss[1] / denom, q[2] * ss[2] / denom)
+            return t, STOPPED, (w, le), dim
+    return t, WALK_ON, (q, le), dim
 
 
 @inline_kernel
-def _sigma_at(mt, stack, x):
-    """(sigma_a, sigma_s) of the stack at world point x: entries' density x coefficients."""
-    a0 = a1 = a2 = s0 = s1 = s2 = 0.0
-    for i in range(MAX_STACK):
-        m = stack[i]
-        if m == EMPTY:
-            break
-        rho = medium_density(mt, m, x)
-        if rho > 0.0:
-            a = sigma_a(mt, m)
-            s = sigma_s(mt, m)
-            a0 += rho * a[0]
-            a1 += rho * a[1]
-            a2 += rho * a[2]
-            s0 += rho * s[0]
-            s1 += rho * s[1]
-            s2 += rho * s[2]
-    return (a0, a1, a2), (s0, s1, s2)
-
-
-@kernel
-def _start_walk(mt, stack, o, d, t0, rows):
-    """Start a DDA for every grid entry; return the homogeneous entries' summed sigma_t,
-    whether any homogeneous entry emits, and the number of grid walkers in `rows`."""
-    h0 = h1 = h2 = 0.0
-    hom_emits = False
-    n = 0
-    for i in range(MAX_STACK):
-        m = stack[i]
-        if m == EMPTY:
-            break
-        if is_grid(mt, m):
-            dda_init(mt, m, o, d, t0, rows[n])
-            n += 1
-        else:
-            st = sigma_t(mt, m)
-            h0 += st[0]
-            h1 += st[1]
-            h2 += st[2]
-            hom_emits = hom_emits or emits(mt, m)
-    return (h0, h1, h2), hom_emits, n
-
-
-@inline_kernel
-def _piece(mt, rows, n, hom_sigma_t, hom_rate):
-    """Majorant (per channel) of the current piece, where the piece ends, and the walker
-    whose grid is crossed by regular tracking on it (-1: null-collision tracking).
-
-    hom_rate < 0 means emission is not sampled; otherwise it is the homogeneous entries'
-    emission rate and the grid entries' rates apply in their emitting cells. Regular
-    tracking needs one grid entry with density on the piece, in a flagged cell, and no
-    emission sampled there."""
-    mu0, mu1, mu2 = hom_sigma_t
-    end = math.inf
-    lam = hom_rate
-    dense = 0
-    exact = -1
-    for j in range(n):
-        m = int(rows[j, DDA_MEDIUM])
-        rho = rows[j, DDA_MAJ]
-        if rho > 0.0:
-            st = sigma_t(mt, m)
-            mu0 += rho * st[0]
-            mu1 += rho * st[1]
-            mu2 += rho * st[2]
-            dense += 1
-            if rows[j, DDA_EXACT] > 0.0:
-                exact = j
-        if hom_rate >= 0.0 and rows[j, DDA_EMITS] > 0.0:
-            lam = max(lam, emission_rate(mt, m))
-        end = min(end, rows[j, DDA_END])
-    if lam > 0.0:
-        mu0 = max(mu0, lam)
-        mu1 = max(mu1, lam)
-        mu2 = max(mu2, lam)
-        exact = -1
-    if dense != 1:
-        exact = -1
-    return (mu0, mu1, mu2), end, exact
-
-
-@inline_kernel
-def _advance_walk(mt, rows, n, t):
-    # `while`: pieces a rounding error made empty are skipped too.
-    for j in range(n):
-        while rows[j, DDA_END] <= t:
-            dda_advance(mt, rows[j])
-
-
-@inline_kernel
-def _decay(q, mu, dt):
-    """q_c * exp(-mu_c dt) per channel (0 * inf safe)."""
-    return (
-        q[0] * math.exp(-optical_depth(mu[0], dt)),
-        q[1] * math.exp(-optical_depth(mu[1], dt)),
-        q[2] * math.exp(-optical_depth(mu[2], dt)),
-    )
-
-
-@inline_kernel
-def _mix(p, q):
-    return p[0] * q[0] + p[1] * q[1] + p[2] * q[2]
-
-
-@inline_kernel
-def _scaled(q, s):
-    return (q[0] / s, q[1] / s, q[2] / s)
-
-
-@inline_kernel
-def _attenuated(q, tau, p):
-    """q_k exp(-tau_k), renormalised (the common factor exp(-min tau) is dropped first, so a
-    channel that sampled the flight, tau_c <= ~37, cannot underflow)."""
-    low = min(tau[0], tau[1], tau[2])
-    q = (q[0] * math.exp(low - tau[0]), q[1] * math.exp(low - tau[1]), q[2] * math.exp(low - tau[2]))
-    return _scaled(q, _mix(p, q))
-
-
-@inline_kernel
-def _unit_ray(mt, rows, j, o, d):
-    """(medium, uo, ud, sigma_t) of walker j's grid: the ray in its unit cube."""
-    m = int(rows[j, DDA_MEDIUM])
-    return m, to_unit_point(mt, m, o), to_unit_vector(mt, m, d), sigma_t(mt, m)
-
-
-@inline_kernel
-def _roulette(f, key, dim):
-    """Russian roulette on a ratio-tracking estimate f: (f, alive, dim)."""
-    m = max(f[0], f[1], f[2])
-    if m >= RR_THRESHOLD:
-        return f, True, dim
-    if m <= 0.0:
-        return f, False, dim
-    survive = m / RR_THRESHOLD
+def _delta_collide(mt, stack, o, d, t, x, mu, dt, p, c, key, dim, rate, env, state):
+    q, le = state
+    q = decay(q, mu, dt)
+    sa, ss = sigma_at(mt, stack, x)
+    st = (sa[0] + ss[0], sa[1] + ss[1], sa[2] + ss[2])
+    if rate >= 0.0:
+        e = stack_emission(mt, stack, x)
+        denom = p[0] * q[0] * mu[0] + p[1] * q[1] * mu[1] + p[2] * q[2] * mu[2]
+        le = (le[0] + e[0] * q[0] / denom, le[1] + e[1] * q[1] / denom, le[2] + e[2] * q[2] / denom)
     u = hashed_uniform(key, dim)
     dim += 1
-    if u >= survive:
-        return f, False, dim
-    return _scaled(f, survive), True, dim
+    if u * mu[c] < st[c]:
+        denom = p[0] * q[0] * st[0] + p[1] * q[1] * st[1] + p[2] * q[2] * st[2]
+        w = (q[0] * ss[0] / denom, q[1] * ss[1] / denom, q[2] * ss[2] / denom)
+        return STOPPED, (w, le), dim
+    # null collision: sigma_n = mu - sigma_t (>= 0 up to rounding: mu bounds sigma_t)
+    q = (
+        q[0] * max(mu[0] - st[0], 0.0),
+        q[1] * max(mu[1] - st[1], 0.0),
+        q[2] * max(mu[2] - st[2], 0.0),
+    )
+    return WALK_ON, (scaled(q, mix(p, q)), le), dim
+
+
+@inline_kernel
+def _delta_passed(mu, dt, p, state):
+    q, le = state
+    q = decay(q, mu, dt)
+    return scaled(q, mix(p, q)), le
+
+
+_delta_walk = make_walk(_delta_regular, sigma_t_majorant, _delta_collide, _delta_passed)
 
 
 @kernel
@@ -209,133 +131,73 @@ def delta_track(mt, stack, o, d, t0, t1, p, key, dim, with_emission, rows):
     collided: a real collision at t with weight3 = q sigma_s / sum p q sigma_t (scattering;
     for transmittance the caller treats it as 0). Otherwise t = t1 and weight3 = q / sum p q.
     """
-    hom_sigma_t, hom_emits, n = _start_walk(mt, stack, o, d, t0, rows)
-    rate = -1.0
-    if with_emission:
-        rate = 0.0
-        if hom_emits and t1 - t0 < math.inf:
-            rate = HOMOGENEOUS_EMISSION_COLLISIONS / (t1 - t0)
+    hom_sigma_t, hom_emits, n = start_walk(mt, stack, o, d, t0, rows)
+    rate = emission_sampling_rate(with_emission, hom_emits, t0, t1)
     q = (1.0 if p[0] > 0.0 else 0.0, 1.0 if p[1] > 0.0 else 0.0, 1.0 if p[2] > 0.0 else 0.0)
-    q = _scaled(q, _mix(p, q))
-    le0 = le1 = le2 = 0.0
+    q = scaled(q, mix(p, q))
     c = pick_channel(p, hashed_uniform(key, dim))
     dim += 1
-    t = t0
-    collisions = 0
-    while t < t1:
-        mu, end, ex = _piece(mt, rows, n, hom_sigma_t, rate)
-        end = min(end, t1)
-        if ex >= 0:  # regular tracking across the piece
-            m, uo, ud, st_grid = _unit_ray(mt, rows, ex, o, d)
-            depth = -fm.log1p(-hashed_uniform(key, dim))
-            dim += 1
-            t, hit, tau = sample_flight(mt, m, uo, ud, t, end, depth, c, st_grid, hom_sigma_t)
-            q = _attenuated(q, tau, p)
-            if hit:
-                x = (o[0] + d[0] * t, o[1] + d[1] * t, o[2] + d[2] * t)
-                sa, ss = _sigma_at(mt, stack, x)
-                st = (sa[0] + ss[0], sa[1] + ss[1], sa[2] + ss[2])
-                denom = p[0] * q[0] * st[0] + p[1] * q[1] * st[1] + p[2] * q[2] * st[2]
-                if denom > 0.0:  # (0 only for a zero-length flight onto zero density: walk on)
-                    w = (q[0] * ss[0] / denom, q[1] * ss[1] / denom, q[2] * ss[2] / denom)
-                    return t, True, w, (le0, le1, le2), dim
-            _advance_walk(mt, rows, n, t)
-            continue
-        while True:
-            dt = math.inf
-            if mu[c] > 0.0:
-                dt = -fm.log1p(-hashed_uniform(key, dim)) / mu[c]
-                dim += 1
-            if t + dt >= end or collisions >= MAX_COLLISIONS:
-                q = _decay(q, mu, end - t)
-                q = _scaled(q, _mix(p, q))
-                t = end
-                break
-            collisions += 1
-            t += dt
-            q = _decay(q, mu, dt)
-            x = (o[0] + d[0] * t, o[1] + d[1] * t, o[2] + d[2] * t)
-            sa, ss = _sigma_at(mt, stack, x)
-            st = (sa[0] + ss[0], sa[1] + ss[1], sa[2] + ss[2])
-            if rate >= 0.0:
-                e = stack_emission(mt, stack, x)
-                denom = p[0] * q[0] * mu[0] + p[1] * q[1] * mu[1] + p[2] * q[2] * mu[2]
-                le0 += e[0] * q[0] / denom
-                le1 += e[1] * q[1] / denom
-                le2 += e[2] * q[2] / denom
-            u = hashed_uniform(key, dim)
-            dim += 1
-            if u * mu[c] < st[c]:
-                denom = p[0] * q[0] * st[0] + p[1] * q[1] * st[1] + p[2] * q[2] * st[2]
-                w = (q[0] * ss[0] / denom, q[1] * ss[1] / denom, q[2] * ss[2] / denom)
-                return t, True, w, (le0, le1, le2), dim
-            # null collision: sigma_n = mu - sigma_t (>= 0 up to rounding: mu bounds sigma_t)
-            q = (
-                q[0] * max(mu[0] - st[0], 0.0),
-                q[1] * max(mu[1] - st[1], 0.0),
-                q[2] * max(mu[2] - st[2], 0.0),
-            )
-            q = _scaled(q, _mix(p, q))
-        _advance_walk(mt, rows, n, t)
-    return t1, False, q, (le0, le1, le2), dim
+    t, event, (w, le), dim = _delta_walk(mt, stack, o, d, t0, t1, p, key, dim, c, rows, n, hom_sigma_t, rate,
+                                         0, (q, (0.0, 0.0, 0.0)))
+    return t, event == STOPPED, w, le, dim
+
+
+# Ratio tracking's decisions. state: (f, q), both renormalised by sum p q; f is zeroed when
+# Russian roulette ends the walk.
+
+@inline_kernel
+def _ratio_regular(mt, stack, o, d, t, end, p, key, dim, c, rows, j, hom_sigma_t, env, state):
+    """Exact transmittance of the piece: every technique's pdf is 1 on it."""
+    f, q = state
+    m, uo, ud, st_grid = unit_ray(mt, rows, j, o, d)
+    tau = optical_depths(mt, m, uo, ud, t, end, st_grid, hom_sigma_t)
+    f = (f[0] * math.exp(-tau[0]), f[1] * math.exp(-tau[1]), f[2] * math.exp(-tau[2]))
+    f, alive, dim = roulette(f, key, dim)
+    if not alive:
+        return t, KILLED, ((0.0, 0.0, 0.0), q), dim
+    return end, WALK_ON, (f, q), dim
+
+
+@inline_kernel
+def _ratio_collide(mt, stack, o, d, t, x, mu, dt, p, c, key, dim, rate, env, state):
+    f, q = state
+    sa, ss = sigma_at(mt, stack, x)
+    f = decay(f, mu, dt)
+    q = decay(q, mu, dt)
+    f = (
+        f[0] * max(mu[0] - sa[0] - ss[0], 0.0),
+        f[1] * max(mu[1] - sa[1] - ss[1], 0.0),
+        f[2] * max(mu[2] - sa[2] - ss[2], 0.0),
+    )
+    q = (q[0] * mu[0], q[1] * mu[1], q[2] * mu[2])
+    s = mix(p, q)
+    f = scaled(f, s)
+    q = scaled(q, s)
+    # Russian roulette on the running estimate f_k / sum p q (= f_k now).
+    f, alive, dim = roulette(f, key, dim)
+    if not alive:
+        return KILLED, ((0.0, 0.0, 0.0), q), dim
+    return WALK_ON, (f, q), dim
+
+
+@inline_kernel
+def _ratio_passed(mu, dt, p, state):
+    f, q = state
+    return decay_both(f, q, mu, dt, p)
+
+
+_ratio_walk = make_walk(_ratio_regular, sigma_t_majorant, _ratio_collide, _ratio_passed)
 
 
 @kernel
 def ratio_track(mt, stack, o, d, t0, t1, p, key, dim, rows):
     """Ratio tracking with spectral MIS and Russian roulette: (Tr3 estimate, dim)."""
-    hom_sigma_t, _, n = _start_walk(mt, stack, o, d, t0, rows)
-    f = (1.0, 1.0, 1.0)
-    q = (1.0, 1.0, 1.0)
+    hom_sigma_t, _, n = start_walk(mt, stack, o, d, t0, rows)
     c = pick_channel(p, hashed_uniform(key, dim))
     dim += 1
-    t = t0
-    collisions = 0
-    while t < t1:
-        mu, end, ex = _piece(mt, rows, n, hom_sigma_t, -1.0)
-        end = min(end, t1)
-        if ex >= 0:  # exact transmittance of the piece: every technique's pdf is 1 on it
-            m, uo, ud, st_grid = _unit_ray(mt, rows, ex, o, d)
-            tau = optical_depths(mt, m, uo, ud, t, end, st_grid, hom_sigma_t)
-            f = (f[0] * math.exp(-tau[0]), f[1] * math.exp(-tau[1]), f[2] * math.exp(-tau[2]))
-            f, alive, dim = _roulette(f, key, dim)
-            if not alive:
-                return (0.0, 0.0, 0.0), dim
-            t = end
-            _advance_walk(mt, rows, n, t)
-            continue
-        while True:
-            dt = math.inf
-            if mu[c] > 0.0:
-                dt = -fm.log1p(-hashed_uniform(key, dim)) / mu[c]
-                dim += 1
-            if t + dt >= end or collisions >= MAX_COLLISIONS:
-                f = _decay(f, mu, end - t)
-                q = _decay(q, mu, end - t)
-                s = _mix(p, q)
-                f = _scaled(f, s)
-                q = _scaled(q, s)
-                t = end
-                break
-            collisions += 1
-            t += dt
-            x = (o[0] + d[0] * t, o[1] + d[1] * t, o[2] + d[2] * t)
-            sa, ss = _sigma_at(mt, stack, x)
-            f = _decay(f, mu, dt)
-            q = _decay(q, mu, dt)
-            f = (
-                f[0] * max(mu[0] - sa[0] - ss[0], 0.0),
-                f[1] * max(mu[1] - sa[1] - ss[1], 0.0),
-                f[2] * max(mu[2] - sa[2] - ss[2], 0.0),
-            )
-            q = (q[0] * mu[0], q[1] * mu[1], q[2] * mu[2])
-            s = _mix(p, q)
-            f = _scaled(f, s)
-            q = _scaled(q, s)
-            # Russian roulette on the running estimate f_k / sum p q (= f_k now).
-            f, alive, dim = _roulette(f, key, dim)
-            if not alive:
-                return (0.0, 0.0, 0.0), dim
-        _advance_walk(mt, rows, n, t)
+    one = (1.0, 1.0, 1.0)
+    _, _, (f, _), dim = _ratio_walk(mt, stack, o, d, t0, t1, p, key, dim, c, rows, n, hom_sigma_t, -1.0, 0,
+                                    (one, one))
     return f, dim
 
 
