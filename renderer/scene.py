@@ -21,7 +21,10 @@ from .shading.program import ImageTexture, ShaderProgram
 
 # 2: shader programs' opcodes were renumbered (the old Noise opcode removed): a folder written
 # as version 1 would have its programs misread, so it is refused with the version named.
-SCENE_FORMAT_VERSION = 2
+# 3: array files are named by their field's place (mesh1.attribute0.values.npy); version 2
+# named corner attributes' files after the attribute only, so meshes sharing a UV map name
+# overwrote each other's (renderer.scenefile reads version 2 folders that lost nothing).
+SCENE_FORMAT_VERSION = 3
 
 RGB = tuple[float, float, float]
 

@@ -16,7 +16,6 @@ import os
 import re
 import tempfile
 import typing
-from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -52,8 +51,26 @@ MAX_SCENE_JSON_BYTES = 64 * 1024 * 1024
 # Python refuses to convert integers of more than 4300 digits (a traceback); longer ones are
 # read as +-inf, so the field they sit in reports them as not finite (or not an integer).
 MAX_INTEGER_DIGITS = 4000
-# Array file names start with the owner's kind and index: mesh0_Cube_vertices.npy.
-_OWNER_PREFIXES = {"meshes": "mesh", "media": "medium"}
+# Versions this Haze reads. 2 differs from 3 only in how save_scene named array files: it
+# named a corner attribute's file after the attribute alone, so meshes sharing an attribute
+# name (every Blender mesh has "uv:UVMap") shared one file and kept the last mesh's values.
+# A version 2 folder is read unless two fields name one file (_refuse_shared_v2_files).
+READABLE_VERSIONS = (2, SCENE_FORMAT_VERSION)
+# An array file is named by where its field sits in the scene, never by a user's name:
+# list items by their kind and index, then field names, joined by ".", e.g.
+# arrays/mesh1.attribute0.values.npy. Every part is an identifier (plus an index), so two
+# fields can never share a name, on case-insensitive file systems too, and no name leaves
+# arrays/. The kind of an item of each list field:
+_ITEM_KINDS = {
+    "meshes": "mesh",
+    "media": "medium",
+    "materials": "material",
+    "images": "image",
+    "attributes": "attribute",
+    "lights": "light",
+    "lobes": "lobe",
+}
+_ARRAY_STEM = re.compile(r"[a-z][a-z0-9_]*(\.[a-z][a-z0-9_]*)*")
 
 
 # ----------------------------------------------------------------------------- public API
@@ -72,7 +89,7 @@ def save_scene(scene: Scene, folder: str | Path, generator: str | None = None) -
     header: dict[str, Any] = {"version": SCENE_FORMAT_VERSION}
     if generator is not None:
         header[GENERATOR_KEY] = generator
-    data = {**header, **_encode(scene, "", "scene", _array_writer(folder))}
+    data = {**header, **_encode(scene, "", _Place(), _ArrayWriter(folder))}
     return _write_text_atomically(folder / SCENE_FILE, _to_readable_json(data))
 
 
@@ -89,10 +106,12 @@ def load_scene_and_inputs(folder: str | Path) -> tuple[Scene, list[Path]]:
     source = _Source(Path(folder))
     data = _read_json(source.folder / SCENE_FILE)
     source.files.append(source.folder / SCENE_FILE)
-    _check_version(data)
+    version = _check_version(data)
     _check_generator(data)
     body = {key: value for key, value in data.items() if key not in ("version", GENERATOR_KEY)}
     scene = _decode_object(body, Scene, "", source)
+    if version == 2:
+        _refuse_shared_v2_files(source)
     validate_scene(scene)
     return scene, source.files
 
@@ -116,6 +135,8 @@ class _Source:
 
     folder: Path
     files: list[Path] = dataclasses.field(default_factory=list)
+    # Each array file read, and the fields (paths like meshes[0].vertices) that named it.
+    readers: dict[Path, list[str]] = dataclasses.field(default_factory=dict)
 
 
 def _read_json(file: Path) -> dict:
@@ -170,17 +191,38 @@ def _reject_duplicate_keys(pairs: list[tuple[str, Any]]) -> dict:
     return data
 
 
-def _check_version(data: dict) -> None:
+def _check_version(data: dict) -> int:
     require("version" in data, "version", "missing required key")
     version = data["version"]
     is_int = isinstance(version, int) and not isinstance(version, bool)
     require(is_int, "version", f"must be an integer, got {show(version)}")
-    supported = version == SCENE_FORMAT_VERSION
+    readable = " and ".join(str(v) for v in READABLE_VERSIONS)
     require(
-        supported,
+        version in READABLE_VERSIONS,
         "version",
-        f"unsupported format version {show(version)} (this Haze reads {SCENE_FORMAT_VERSION})",
+        f"unsupported format version {show(version)} (this Haze reads versions {readable}; "
+        "export or save the scene again with this Haze)",
     )
+    return version
+
+
+def _refuse_shared_v2_files(source: _Source) -> None:
+    """A version 2 folder in which two fields name one file lost data when it was written.
+
+    save_scene of format 2 named corner-attribute files after the attribute alone, so every
+    mesh with a "uv:UVMap" wrote the same file and only the last mesh's values survived:
+    reading such a folder would silently put one mesh's UVs on another.
+    """
+    for file, fields in source.readers.items():
+        if len(fields) > 1:
+            shown = show(file.relative_to(source.folder.resolve()).as_posix())
+            raise SceneError(
+                fields[0],
+                f"this folder is scene format version 2, and {' and '.join(fields)} all name "
+                f"the file {shown}: the Haze that wrote it saved the values of meshes sharing "
+                "an attribute name to one file, keeping only the last; export or save the "
+                f"scene again with this Haze (format {SCENE_FORMAT_VERSION})",
+            )
 
 
 def _check_generator(data: dict) -> None:
@@ -244,6 +286,7 @@ def _read_array(value: Any, dtype: np.dtype, path: str, source: _Source) -> np.n
         array.close()
         raise SceneError(path, f"{shown} is not a single-array .npy file")
     source.files.append(file)
+    source.readers.setdefault(file, []).append(path)
     return array
 
 
@@ -297,24 +340,40 @@ def _check_npy_header(file: Path, dtype: np.dtype, path: str, shown: str) -> Non
 # --------------------------------------------------------------------------------- saving
 
 
-def _encode(value: Any, field_name: str, owner: str, write_array: Callable[[np.ndarray, str], str]) -> Any:
-    """The JSON form of `value`; data arrays are written by `write_array`, which names the file."""
+@dataclasses.dataclass(frozen=True)
+class _Place:
+    """Where a value sits in the scene: its field path for messages (meshes[1].vertices)
+    and the stem of its array file (mesh1.vertices), both from field names and indices only."""
+
+    path: str = ""
+    stem: tuple[str, ...] = ()
+
+    def field(self, name: str) -> _Place:
+        return _Place(join(self.path, name), (*self.stem, name))
+
+    def item(self, list_field: str, index: int) -> _Place:
+        # The list's own part (e.g. "meshes") is replaced by the item's kind and index.
+        kind = _ITEM_KINDS.get(list_field, list_field)
+        return _Place(f"{self.path}[{index}]", (*self.stem[:-1], f"{kind}{index}"))
+
+
+def _encode(value: Any, field_name: str, place: _Place, write_array: _ArrayWriter) -> Any:
+    """The JSON form of `value`; data arrays are written by `write_array`, named by `place`."""
     from renderer.media.bricks import SparseGrid  # lazily: renderer.media imports the scene modules
 
     if isinstance(value, SparseGrid):  # the format holds dense grids: written out in full
-        return write_array(value.to_dense(), f"{owner}_{field_name}")
+        return write_array(value.to_dense(), place)
     if dataclasses.is_dataclass(value):
         fields = dataclasses.fields(value)
-        encoded = {f.name: _encode(getattr(value, f.name), f.name, owner, write_array) for f in fields}
+        encoded = {f.name: _encode(getattr(value, f.name), f.name, place.field(f.name), write_array)
+                   for f in fields}
         return _type_first(encoded) if isinstance(value, tuple(LIGHT_TYPES.values())) else encoded
     if isinstance(value, list):
-        return [
-            _encode(item, "", _owner_name(field_name, i, item), write_array) for i, item in enumerate(value)
-        ]
+        return [_encode(item, "", place.item(field_name, i), write_array) for i, item in enumerate(value)]
     if isinstance(value, np.ndarray) and field_name in MATRIX_FIELDS:
         return value.tolist()
     if isinstance(value, np.ndarray):
-        return write_array(value, f"{owner}_{field_name}")
+        return write_array(value, place)
     if isinstance(value, tuple):
         return list(value)
     return value
@@ -325,21 +384,35 @@ def _type_first(encoded: dict) -> dict:
     return {"type": encoded.pop("type"), **encoded}
 
 
-def _owner_name(list_field: str, index: int, item: Any) -> str:
-    """File name stem of a list item's arrays: its kind, index (unique) and name (readable)."""
-    prefix = _OWNER_PREFIXES.get(list_field, list_field)
-    name = getattr(item, "name", "")
-    safe_name = re.sub(r"[^A-Za-z0-9._-]+", "_", name)[:48]
-    return f"{prefix}{index}_{safe_name}" if safe_name else f"{prefix}{index}"
+class _ArrayWriter:
+    """Writes a scene's arrays into folder/arrays, each to its own file, or refuses."""
 
+    def __init__(self, folder: Path) -> None:
+        self.folder = folder
+        self.written: dict[str, str] = {}  # case-folded file name -> the field written there
 
-def _array_writer(folder: Path) -> Callable[[np.ndarray, str], str]:
-    def write_array(array: np.ndarray, stem: str) -> str:
+    def __call__(self, array: np.ndarray, place: _Place) -> str:
+        stem = ".".join(place.stem)
+        # Both hold by construction (_Place); checked because a lost array is silent.
+        require(_ARRAY_STEM.fullmatch(stem) is not None, place.path, f"no safe file name from {stem!r}")
         relative = f"{ARRAY_DIR}/{stem}.npy"
-        np.save(folder / relative, array, allow_pickle=False)
+        earlier = self.written.get(relative.casefold())
+        require(earlier is None, place.path, f"would be written to {relative}, the file of {earlier}")
+        self.written[relative.casefold()] = place.path
+        _write_array_atomically(self.folder / relative, array)
         return relative
 
-    return write_array
+
+def _write_array_atomically(file: Path, array: np.ndarray) -> None:
+    # A new file renamed over the old: never written through a link, never left half-written.
+    handle, temporary = tempfile.mkstemp(dir=file.parent, prefix=f".{file.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(handle, "wb") as stream:
+            np.save(stream, array, allow_pickle=False)
+        os.replace(temporary, file)
+    except BaseException:
+        Path(temporary).unlink(missing_ok=True)
+        raise
 
 
 def _to_readable_json(data: dict) -> str:

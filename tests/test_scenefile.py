@@ -182,8 +182,8 @@ def test_saving_a_loaded_scene_writes_the_same_json(tmp_path: Path) -> None:
 def test_scene_json_is_versioned_and_refers_to_arrays_by_relative_name(tmp_path: Path) -> None:
     data = json.loads(save_scene(_good_scene(), tmp_path).read_text())
     assert data["version"] == SCENE_FORMAT_VERSION
-    assert data["meshes"][1]["vertices"] == "arrays/mesh1_fog_box_1_vertices.npy"
-    assert data["media"][1]["density"] == "arrays/medium1_smoke_density.npy"
+    assert data["meshes"][1]["vertices"] == "arrays/mesh1.vertices.npy"
+    assert data["media"][1]["density"] == "arrays/medium1.density.npy"
     assert (tmp_path / data["media"][1]["density"]).is_file()
 
 
@@ -220,8 +220,8 @@ def test_the_documented_example_loads(tmp_path: Path) -> None:
     example = re.search(r"```json\n(.*?)```", doc, re.DOTALL).group(1)
     (tmp_path / "scene.json").write_text(example)
     (tmp_path / "arrays").mkdir()
-    np.save(tmp_path / "arrays" / "mesh0_floor_vertices.npy", np.eye(3, dtype=np.float32))
-    np.save(tmp_path / "arrays" / "mesh0_floor_indices.npy", np.array([[0, 1, 2]], np.int32))
+    np.save(tmp_path / "arrays" / "mesh0.vertices.npy", np.eye(3, dtype=np.float32))
+    np.save(tmp_path / "arrays" / "mesh0.indices.npy", np.array([[0, 1, 2]], np.int32))
     scene = load_scene(tmp_path)
     assert (scene.film.width, scene.lights[0].irradiance) == (320, (3.0, 3.0, 3.0))
 
@@ -487,7 +487,7 @@ _BAD_FOLDERS = [
     (_array_file("meshes[1].indices", np.full((1, 3), 9, np.int32)), "meshes[1].indices", "out of range"),
     (_json_set("materials[1].lobes[1].roughness", 2), "materials[1].lobes[1].roughness", "must be in [0, 1]"),
     (
-        _json_set("media[0].density", "arrays/medium1_smoke_density.npy"),
+        _json_set("media[0].density", "arrays/medium1.density.npy"),
         "media[0].density",
         "only grid media",
     ),
