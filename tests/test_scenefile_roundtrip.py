@@ -12,6 +12,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+import re
 from pathlib import Path
 from typing import Any
 
@@ -397,3 +398,52 @@ def test_generated_scenes_round_trip_exactly(tmp_path_factory, scene: Scene) -> 
     # Saving the loaded scene again changes nothing: the folder is a fixed point.
     again = tmp_path_factory.mktemp("again")
     assert save_scene(load_scene(folder), again).read_text() == (folder / "scene.json").read_text()
+
+
+# ------------------------------------------------------------------ the written format
+
+DOC = Path(__file__).resolve().parents[1] / "docs" / "scene-format.md"
+# The doc's sections of keys, and the classes whose fields they must list exactly.
+DOC_SECTIONS = {
+    "Top level": (Scene,), "`camera`": (Camera,), "`film`": (Film,), "`integrator`": (IntegratorSettings,),
+    "Material": (Material,), "Lobe": (Lobe,), "Mesh": (Mesh,), "CornerAttribute": (CornerAttribute,),
+    "ShaderProgram": (ShaderProgram,), "Image": (ImageTexture,), "Light": (PointLight, SpotLight, SunLight),
+    "Medium": (Medium,), "`environment`": (Environment,),
+}
+
+
+def _documented_keys(text: str) -> dict[str, set[str]]:
+    """Section title (up to its first " (") -> the backticked names in its tables' key column."""
+    keys: dict[str, set[str]] = {}
+    for section in text.split("\n### ")[1:]:
+        title = section.splitlines()[0].split(" (")[0].strip()
+        rows = [line for line in section.splitlines() if line.startswith("| `")]
+        keys[title] = {name for row in rows for name in re.findall(r"`(\w+)`", row.split("|")[1])}
+    return keys
+
+
+def test_the_format_doc_lists_every_key_of_every_class() -> None:
+    documented = _documented_keys(DOC.read_text())
+    for title, classes in DOC_SECTIONS.items():
+        fields = {f.name for cls in classes for f in dataclasses.fields(cls)}
+        if classes == (Scene,):
+            fields |= {"version", "generator"}  # the header keys
+        keys = documented[title] | ({"type"} if title == "Light" else set())  # `type`: in the prose
+        assert keys == fields, (title, keys ^ fields)
+
+
+def test_the_format_doc_lists_the_opcodes_in_order() -> None:
+    from renderer.shading.program import OPCODES
+
+    table = DOC.read_text().split("<!-- opcodes:")[1].split("\n\n")[0]
+    cells = re.findall(r"\| (\d+) \| `(\w+)` ", table)
+    assert sorted((int(code), name) for code, name in cells) == list(enumerate(OPCODES))
+
+
+def test_the_format_doc_lists_every_array_field() -> None:
+    text = DOC.read_text()
+    for field in _array_fields(every_field_scene()):
+        generic = re.sub(r"\[\d+\]", "[i]", field, count=1)
+        generic = re.sub(r"\[\d+\]", "[j]", generic)
+        generic = re.sub(r"(media\[i\]\.program)\.\w+", r"\1.*", generic)
+        assert f"| `{generic}` |" in text, field
