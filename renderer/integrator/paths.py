@@ -14,6 +14,7 @@ import numpy as np
 from ..kernels import inline_kernel
 from ..kernels.rng import uniform
 from ..kernels.vecmath import dot, madd, max3, scale
+from ..layout import Layout
 from .config import SAMPLING_BSDF, SAMPLING_NEE
 
 PATH_DEAD = 0
@@ -21,41 +22,67 @@ PATH_ACTIVE = 1
 PATH_SCATTERED = 2
 
 RAY_FAR = 1e30  # "no hit" length of a ray, and the distance of lights at infinity
-# The batch's radiance array L is (N, 4): RGB, then the path's transparency (Film >
-# Transparent: the throughput with which it reached the world directly), which splat
-# turns into alpha = 1 - transparency.
-ALPHA = 3
-L_COLUMNS = 4
-# With render passes requested (CFG_AOVS) L has L_COLUMNS_AOV columns: after alpha, the
-# AOV_COUNT columns the film sums (renderer.passes turns them into Blender's passes), then
-# per-path scratch the surface stage keeps between bounces (not summed).
-AOV_FIRST = 4
-AOV_HIT0 = 4  # 1 when the pixel's sample 0 hit a surface: Depth and Position are then valid
-AOV_POSITION = 5  # sample 0's first non-transparent hit, world space (Cycles overwrites on sample 0)
-AOV_NORMAL = 8  # shading normal (facing the ray) of the first non-transparent hit, every sample
-AOV_DALBEDO = 11  # Denoising Albedo: feature throughput x diffuse-like albedo (or emission seen)
-AOV_DNORMAL = 14  # Denoising Normal, world space (renderer.passes turns it into camera space)
-AOV_DNORMAL_VOLUME = 17  # weight of Cycles' volume denoising normal, (0, 0, -1) in camera space
-AOV_MIST = 18  # (1 - mist) x mean throughput at the data passes' hit; Mist = 1 - its mean
-AOV_COUNT = 15
-AOV_SAMPLE0 = 19  # scratch: 1 for sample 0 of its pixel (set by the wavefront)
-AOV_DATA_DONE = 20  # scratch: the data passes (position, normal) were written
-AOV_FEAT_DONE = 21  # scratch: the denoising features were written
-AOV_FEAT_T = 22  # scratch, 3 columns: feature throughput (product of the specular albedos passed)
-AOV_FEAT_DEPTH = 25  # scratch: the path's depth after the last surface the features looked at
-L_COLUMNS_AOV = 26
-# With the light and colour passes also requested (CFG_LIGHT_AOVS) L has L_COLUMNS_LIGHT_AOV
-# columns: LIGHT_AOV_COUNT more after the scratch, which the film sums after the AOV_COUNT.
-LIGHT_AOV_FIRST = 26
-AOV_EMISSION = 26  # Emission: emission the camera path found before scattering (Cycles' Emit)
-AOV_DIFFUSE_COLOR = 29  # throughput x diffuse albedo at each hit before scattering
-AOV_GLOSSY_COLOR = 32  # throughput x glossy albedo at each hit before scattering
-AOV_VOLUME_DIRECT = 35  # light reaching the camera through a first scatter in a volume: its
-AOV_VOLUME_INDIRECT = 38  # next-event rays and the emission right after it; the rest of it
-AOV_TRANSMISSION_COLOR = 41  # throughput x transmission albedo at each hit before scattering
-LIGHT_AOV_COUNT = 18
-AOV_FIRST_KIND = 44  # scratch: how the path first scattered (KIND_*), set at that event
-L_COLUMNS_LIGHT_AOV = 45
+
+# The batch's radiance array L, one row per path slot (pid), float64 columns. Three widths,
+# each a prefix of RADIANCE: L_COLUMNS without render passes (RGB, then the path's
+# transparency: Film > Transparent's throughput with which it reached the world directly,
+# which splat turns into alpha = 1 - transparency); L_COLUMNS_AOV with passes requested
+# (CFG_AOVS): the AOV_COUNT columns the film sums (renderer.passes turns them into Blender's
+# passes), then per-path scratch the surface stage keeps between bounces (not summed);
+# L_COLUMNS_LIGHT_AOV with the light and colour passes too (CFG_LIGHT_AOVS): LIGHT_AOV_COUNT
+# more summed columns, which the film sums after the AOV_COUNT, and one more scratch.
+RADIANCE = Layout("radiance", [
+    ("rgb", 3),
+    ("transparency", 1),
+    # passes (summed)
+    ("hit0", 1),  # 1 when the pixel's sample 0 hit a surface: Depth and Position are then valid
+    ("position", 3),  # sample 0's first non-transparent hit, world space (Cycles overwrites on sample 0)
+    ("normal", 3),  # shading normal (facing the ray) of the first non-transparent hit, every sample
+    ("denoise_albedo", 3),  # feature throughput x diffuse-like albedo (or emission seen)
+    ("denoise_normal", 3),  # world space (renderer.passes turns it into camera space)
+    ("denoise_normal_volume", 1),  # weight of Cycles' volume denoising normal, (0, 0, -1) in camera space
+    ("mist", 1),  # (1 - mist) x mean throughput at the data passes' hit; Mist = 1 - its mean
+    # passes' scratch (not summed)
+    ("sample0", 1),  # 1 for sample 0 of its pixel (set by the wavefront)
+    ("data_done", 1),  # the data passes (position, normal) were written
+    ("feature_done", 1),  # the denoising features were written
+    ("feature_throughput", 3),  # product of the specular albedos passed
+    ("feature_depth", 1),  # the path's depth after the last surface the features looked at
+    # light and colour passes (summed)
+    ("emission", 3),  # emission the camera path found before scattering (Cycles' Emit)
+    ("diffuse_color", 3),  # throughput x diffuse albedo at each hit before scattering
+    ("glossy_color", 3),  # throughput x glossy albedo at each hit before scattering
+    ("volume_direct", 3),  # light reaching the camera through a first scatter in a volume: its
+    ("volume_indirect", 3),  # next-event rays and the emission right after it; the rest of it
+    ("transmission_color", 3),  # throughput x transmission albedo at each hit before scattering
+    # light passes' scratch
+    ("first_kind", 1),  # how the path first scattered (KIND_*), set at that event
+])
+ALPHA = RADIANCE.offset("transparency")
+L_COLUMNS = RADIANCE.offset("hit0")
+AOV_FIRST = AOV_HIT0 = RADIANCE.offset("hit0")
+AOV_POSITION = RADIANCE.offset("position")
+AOV_NORMAL = RADIANCE.offset("normal")
+AOV_DALBEDO = RADIANCE.offset("denoise_albedo")
+AOV_DNORMAL = RADIANCE.offset("denoise_normal")
+AOV_DNORMAL_VOLUME = RADIANCE.offset("denoise_normal_volume")
+AOV_MIST = RADIANCE.offset("mist")
+AOV_COUNT = RADIANCE.offset("sample0") - AOV_FIRST
+AOV_SAMPLE0 = RADIANCE.offset("sample0")
+AOV_DATA_DONE = RADIANCE.offset("data_done")
+AOV_FEAT_DONE = RADIANCE.offset("feature_done")
+AOV_FEAT_T = RADIANCE.offset("feature_throughput")
+AOV_FEAT_DEPTH = RADIANCE.offset("feature_depth")
+L_COLUMNS_AOV = LIGHT_AOV_FIRST = RADIANCE.offset("emission")
+AOV_EMISSION = RADIANCE.offset("emission")
+AOV_DIFFUSE_COLOR = RADIANCE.offset("diffuse_color")
+AOV_GLOSSY_COLOR = RADIANCE.offset("glossy_color")
+AOV_VOLUME_DIRECT = RADIANCE.offset("volume_direct")
+AOV_VOLUME_INDIRECT = RADIANCE.offset("volume_indirect")
+AOV_TRANSMISSION_COLOR = RADIANCE.offset("transmission_color")
+LIGHT_AOV_COUNT = RADIANCE.offset("first_kind") - LIGHT_AOV_FIRST
+AOV_FIRST_KIND = RADIANCE.offset("first_kind")
+L_COLUMNS_LIGHT_AOV = RADIANCE.size
 # Cycles' render pass categories (PATH_RAY_SURFACE_PASS / VOLUME_PASS): what a path's first
 # scattering event was. Only the volume's passes are written, so surfaces leave KIND_NONE.
 KIND_NONE = 0.0
