@@ -20,7 +20,6 @@ from ..kernels.rng import hashed_uniform
 from ..kernels.vecmath import add, madd, max3, mul, scale
 from ..lights.environment import connect_light_env
 from ..lights.sample import light_has_point, light_pmf, light_point, pick_light
-from ..lights.table import LT_CDF
 from . import nee_batch
 from .aovs import (
     aov_after_medium,
@@ -177,7 +176,7 @@ def shade_media(n, ps, prim, lt, env, md, cfg, L, sh, nb, grid_md):
     # int64, not the literal 0: numba compiles a callee once per argument type it meets while
     # typing, so a literal would compile _flush_nee_batch (and the SIMD batch) twice over.
     s = np.int64(0)
-    cdf = lt[LT_CDF]  # what pick_light searches: L + 1 entries
+    cdf = lt.cdf  # what pick_light searches: L + 1 entries
     batched = cfg[CFG_NEE_BATCH] != 0
     aovs = cfg[CFG_AOVS] != 0  # render passes requested (integrator.aovs)
     light_aovs = cfg[CFG_LIGHT_AOVS] != 0  # and the light passes (Emission: depth 0)

@@ -44,17 +44,7 @@ from renderer.kernels.rng import hashed_uniform
 from renderer.kernels.vecmath import dot
 from renderer.layout import Layout
 from renderer.lights.sample import connect_triangle_simd, triangle_point
-from renderer.lights.table import (
-    LT_COLOR,
-    LT_COLOR_B,
-    LT_KIND,
-    LT_PARAM,
-    LT_PMF,
-    LT_POS,
-    LT_VEC_A,
-    LT_VEC_B,
-    TRIANGLE,
-)
+from renderer.lights.table import TRIANGLE
 from renderer.media.homogeneous import beer_simd, free_flight_segment_simd, segment_simd
 from renderer.media.nee import nee_vertex_simd
 from renderer.media.spectral import channel_probabilities_simd
@@ -164,7 +154,7 @@ def path_update(r, j):
 
 @inline_kernel
 def qualifies(lt, light, stack):
-    return lt[LT_KIND][light] == TRIANGLE and stack[1] == EMPTY
+    return lt.kind[light] == TRIANGLE and stack[1] == EMPTY
 
 
 @inline_kernel
@@ -188,8 +178,8 @@ def record(nb, j, path, key, dim, lt, light, o, d, tmax, beta, sigma_s, sigma_t,
     q_path[j] = path
     # The light's data too: the SIMD loop then reads only rows at j (a gather by light index
     # would keep LLVM from bounding the loop's memory accesses, and so from vectorising it).
-    pos, vec_a, vec_b, param, pmf = lt[LT_POS], lt[LT_VEC_A], lt[LT_VEC_B], lt[LT_PARAM], lt[LT_PMF]
-    color, color_b = lt[LT_COLOR], lt[LT_COLOR_B]
+    pos, vec_a, vec_b, param, pmf = lt.pos, lt.vec_a, lt.vec_b, lt.param, lt.pmf
+    color, color_b = lt.color, lt.color_b
     for k in range(3):
         q[(Q_P0 + k) * CHUNK + j] = pos[light, k]
         q[(Q_EA + k) * CHUNK + j] = vec_a[light, k]

@@ -35,7 +35,6 @@ from ..lights.sample import (
     triangle_emission,
     triangle_light_pdf,
 )
-from ..lights.table import LT_CDF
 from .aovs import (
     aov_after_medium,
     aov_background,
@@ -81,8 +80,7 @@ _NO_BUMP = ((0.0, 0.0, 1.0), (0.0, 0.0, 1.0))  # `bump` of an unbumped surface (
 
 
 @kernel
-def shade_surface(n, ps, prim, bu, bv, geo, mt, override, program_out, lt, env_light, sun_rows, env, cfg, L,
-                  sh, s, cam, mist):
+def shade_surface(n, ps, prim, bu, bv, geo, mt, override, program_out, lt, env, cfg, L, sh, s, cam, mist):
     """Shade the closest hits of paths 0..n-1 that are PATH_ACTIVE (prim -1 = escaped;
     ps.tmax holds the hit distance): emission, next-event estimation, BSDF sampling, Russian
     roulette. Writes new rays into ps, kills finished paths, appends shadow rays to sh from
@@ -98,7 +96,7 @@ def shade_surface(n, ps, prim, bu, bv, geo, mt, override, program_out, lt, env_l
     transparent = cfg[CFG_FILM_TRANSPARENT] != 0
     aovs = cfg[CFG_AOVS] != 0  # render passes requested (integrator.aovs); else no pass work at all
     light_aovs = cfg[CFG_LIGHT_AOVS] != 0  # and the light and colour passes
-    cdf = lt[LT_CDF]  # what pick_light searches: L + 1 entries
+    cdf = lt.cdf  # what pick_light searches: L + 1 entries
     for i in range(n):
         if ps.alive[i] != PATH_ACTIVE:
             continue
@@ -117,7 +115,7 @@ def shade_surface(n, ps, prim, bu, bv, geo, mt, override, program_out, lt, env_l
 
         # --- escaped: environment and sun discs ------------------------------------------
         if p < 0:
-            env_row = env_light
+            env_row = lt.env_light
             if depth == 0 and transparent:
                 # Cycles' transparent background: a camera ray that reaches the world having
                 # only passed through (interfaces, transparent lobes, media unscattered)
@@ -125,7 +123,7 @@ def shade_surface(n, ps, prim, bu, bv, geo, mt, override, program_out, lt, env_l
                 # (alpha = 1 - transparency); sun discs stay visible, as Cycles' distant lights.
                 L[pid, ALPHA] += (beta[0] + beta[1] + beta[2]) / 3.0
                 env_row = -1
-            le, pdf_light = escaped_radiance_env(lt, env_row, sun_rows, env, d)
+            le, pdf_light = escaped_radiance_env(lt, env_row, lt.sun_rows, env, d)
             if max3(le) > 0.0:
                 w = hit_weight(ps.mis_pdf[i], pdf_light, sampling)
                 add_weighted_radiance(L, pid, beta, le, w)
@@ -263,7 +261,7 @@ def _surface_nee(lt, env, mt, m, front, x, ng, wo, ts, tt, sn, beta, sampling, p
     light pass column col). Returns (next shadow index, whether a shadow ray was written).
     bumped: a program set the normal, and the lobes see their own normals (bump, in the
     frame (ts, tt, sn); renderer.bsdfs.closure_normals)."""
-    cdf = lt[LT_CDF]  # what pick_light searches: L + 1 entries
+    cdf = lt.cdf  # what pick_light searches: L + 1 entries
     light = pick_light(cdf, uniform(key, dim))
     lp = light_point(lt, light, uniform(key, dim + 1), uniform(key, dim + 2))
     wi, dist, le, pdf, is_delta = connect_light_env(lt, env, light, lp, x, uniform(key, dim + 3),

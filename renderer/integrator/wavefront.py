@@ -14,7 +14,6 @@ from ..geometry import Intersector
 from ..kernels.warmup import KernelCall, warm_up
 from ..lights.environment import connect_light_env, escaped_radiance_env
 from ..lights.sample import triangle_light_pdf
-from ..lights.table import kernel_arrays
 from ..media.layout import dda_scratch
 from ..media.stack_phase import phase_eval, sample_phase
 from ..scene import IntegratorSettings
@@ -103,7 +102,7 @@ class Tracer:
         self.pixel_of_pid = np.zeros(self.batch, np.int32)
         self.half_of_pid = np.zeros(self.batch, np.int32)
         self.remaining = np.zeros(2 * self.batch, np.float32)
-        self.lt = kernel_arrays(cs.lights)
+        self.lt = cs.lights
         self.init_stack = camera_medium_stack(cs, self.isect)
         self._shader_programs(cs)
         self.stats = {"rays": 0, "shadow_rays": 0, "embree_s": 0.0}
@@ -140,7 +139,7 @@ class Tracer:
             (K.start_paths, (ps, self.pixel_of_pid, self.half_of_pid, cs.camera, cs.width, cs.height,
                              0, 0, 0, 1, 0, self.init_stack)),
             (K.shade_surface, (1, ps, prim, bu, bv, cs.geometry, self.mt, self.override, self.program_out,
-                               lt, cs.lights.env_light, cs.lights.sun_rows, cs.environment, cfg, L, sh, 0,
+                               lt, cs.environment, cfg, L, sh, 0,
                                cs.camera, self.mist)),
             (K.compact_paths, (1, ps)),
             (K.splat, (1, L, self.pixel_of_pid, self.half_of_pid, np.zeros((1, 3), np.float64),
@@ -233,7 +232,7 @@ class Tracer:
                                self.entry, self.override, self.program_out, self.max_lobes, FIELD_OFFSETS)
             count = K.shade_surface(live, ps, prim, bu, bv, cs.geometry, self.mt, self.override,
                                     self.program_out, self.lt,
-                                    cs.lights.env_light, cs.lights.sun_rows, cs.environment, self.cfg, self.L,
+                                    cs.environment, self.cfg, self.L,
                                     sh, count,
                                     cs.camera, self.mist)
             if count:

@@ -44,7 +44,7 @@ from .environment_lookup import (
     uv_to_direction,
 )
 from .sample import connect_light, escaped_radiance, pick_light
-from .table import ENVIRONMENT, LT_KIND, LT_PMF
+from .table import ENVIRONMENT
 
 INV_2PI2 = 1.0 / (2.0 * math.pi * math.pi)
 
@@ -121,7 +121,7 @@ def escaped_radiance_env(lt, env_light, sun_rows, env, d):
         if env_light >= 0:
             le, pdf = escaped_radiance(lt, np.int64(-1), sun_rows, d)  # the sun discs
             le_env, pdf_env = environment_radiance(env, d)
-            return add(le, le_env), pdf + lt[LT_PMF][env_light] * pdf_env
+            return add(le, le_env), pdf + lt.pmf[env_light] * pdf_env
     return escaped_radiance(lt, env_light, sun_rows, d)
 
 
@@ -130,7 +130,7 @@ def connect_light_env(lt, env, light, lp, x, u1, u2):
     """connect_light, with the environment row sampled from its map when the world has one
     (env not None); for a constant world (env None) exactly connect_light."""
     if env is not None:
-        if lt[LT_KIND][light] == ENVIRONMENT:
+        if lt.kind[light] == ENVIRONMENT:
             wi, le, pdf = sample_environment(env, u1, u2)
             return wi, 1e30, le, pdf, False
     return connect_light(lt, light, lp, x, u1, u2)

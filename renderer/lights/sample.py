@@ -1,8 +1,9 @@
 """Light sampling kernels over the LightTable (see renderer.lights.table).
 
-`lt` is the table's arrays as a tuple (table.kernel_arrays), read by the LT_* names. Light
-sampling is split in two so that a medium can place its next-event vertex toward the
-chosen point (equiangular sampling) before the connection is made:
+`lt` is the LightTable record itself, its arrays read by field name (numba passes a
+NamedTuple of arrays as cheaply as one argument each). Light sampling is split in two so
+that a medium can place its next-event vertex toward the chosen point (equiangular
+sampling) before the connection is made:
   pick_light     -> a row, by power
   light_point    -> a point on that light (area lights, point and spot lights)
   connect_light  -> direction, distance, radiance and solid-angle pdf from a shading point;
@@ -30,14 +31,6 @@ from .spherical_triangle import (
     use_solid_angle,
 )
 from .table import (
-    LT_COLOR,
-    LT_COLOR_B,
-    LT_KIND,
-    LT_PARAM,
-    LT_PMF,
-    LT_POS,
-    LT_VEC_A,
-    LT_VEC_B,
     POINT,
     SPOT,
     SUN,
@@ -50,13 +43,13 @@ SOLID_ANGLE_GATE = 0.05  # sr; see looks_near
 @inline_kernel
 def light_pmf(lt, light):
     """Probability that pick_light chooses `light`."""
-    return lt[LT_PMF][light]
+    return lt.pmf[light]
 
 
 @inline_kernel
 def triangle_emission(lt, light, front):
     """Radiance triangle light `light` emits from its front or its back side."""
-    c = lt[LT_COLOR] if front else lt[LT_COLOR_B]
+    c = lt.color if front else lt.color_b
     return (float(c[light, 0]), float(c[light, 1]), float(c[light, 2]))
 
 
@@ -78,7 +71,7 @@ def pick_light(cdf, u):
 
 @inline_kernel
 def light_has_point(lt, light):
-    k = lt[LT_KIND][light]
+    k = lt.kind[light]
     return k == TRIANGLE or k == POINT or k == SPOT
 
 
@@ -86,7 +79,7 @@ def light_has_point(lt, light):
 def light_point(lt, light, u1, u2):
     """A point on the light, uniform by area for triangles; the position of point and spot
     lights; the origin for sun and environment (which have no point)."""
-    kind, pos, vec_a, vec_b = lt[LT_KIND], lt[LT_POS], lt[LT_VEC_A], lt[LT_VEC_B]
+    kind, pos, vec_a, vec_b = lt.kind, lt.pos, lt.vec_a, lt.vec_b
     p = (float(pos[light, 0]), float(pos[light, 1]), float(pos[light, 2]))
     if kind[light] != TRIANGLE:
         return p
@@ -127,7 +120,7 @@ def spot_attenuation(axis, cos_outer, blend_width, wi_from_light):
 
 @inline_kernel
 def _triangle(lt, light):
-    pos, vec_a, vec_b = lt[LT_POS], lt[LT_VEC_A], lt[LT_VEC_B]
+    pos, vec_a, vec_b = lt.pos, lt.vec_a, lt.vec_b
     p0 = (float(pos[light, 0]), float(pos[light, 1]), float(pos[light, 2]))
     e1 = (float(vec_a[light, 0]), float(vec_a[light, 1]), float(vec_a[light, 2]))
     e2 = (float(vec_b[light, 0]), float(vec_b[light, 1]), float(vec_b[light, 2]))
@@ -157,7 +150,7 @@ def _connect_direction(lt, light, x, p0, p1, p2, wi, omega, c):
     if not (dist > 0.0 and math.isfinite(dist)):
         return wi, 0.0, (0.0, 0.0, 0.0), 0.0, False
     if cos_l < 0.0:
-        color_b = lt[LT_COLOR_B]
+        color_b = lt.color_b
         c = (float(color_b[light, 0]), float(color_b[light, 1]), float(color_b[light, 2]))
     return wi, dist, c, 1.0 / omega, False
 
@@ -170,8 +163,8 @@ def connect_light(lt, light, lp, x, u1, u2):
     radiance, or intensity / dist^2 for delta lights), pdf (solid angle, without the light's
     selection probability; 1 for delta lights), is_delta).
     """
-    kind, vec_a, vec_b, param = lt[LT_KIND], lt[LT_VEC_A], lt[LT_VEC_B], lt[LT_PARAM]
-    color, color_b = lt[LT_COLOR], lt[LT_COLOR_B]
+    kind, vec_a, vec_b, param = lt.kind, lt.vec_a, lt.vec_b, lt.param
+    color, color_b = lt.color, lt.color_b
     k = kind[light]
     c = (float(color[light, 0]), float(color[light, 1]), float(color[light, 2]))
     if k == TRIANGLE:
@@ -263,7 +256,7 @@ def connect_triangle_simd(p0, p1, p2, lp, area, x, u1, u2):
 def escaped_radiance(lt, env_light, sun_rows, d):
     """Radiance arriving along direction d from infinity (environment and sun discs), and
     the light-sampling pdf of that direction including selection probabilities (for MIS)."""
-    pmf, color, vec_a, param = lt[LT_PMF], lt[LT_COLOR], lt[LT_VEC_A], lt[LT_PARAM]
+    pmf, color, vec_a, param = lt.pmf, lt.color, lt.vec_a, lt.param
     r, g, b, pdf = 0.0, 0.0, 0.0, 0.0
     if env_light >= 0:
         r += color[env_light, 0]
@@ -289,11 +282,11 @@ def triangle_light_pdf(lt, light, x, p, cos_l):
     if looks_near(x, p0, p1, p2):
         omega = spherical_triangle(x, p0, p1, p2)[0]
         if use_solid_angle(omega):
-            return lt[LT_PMF][light] / omega
-    area = lt[LT_PARAM][light, 0]
+            return lt.pmf[light] / omega
+    area = lt.param[light, 0]
     if area <= 0.0 or abs(cos_l) < 1e-8:
         return 0.0
     to = sub(p, x)
-    return lt[LT_PMF][light] * dot(to, to) / (area * abs(cos_l))
+    return lt.pmf[light] * dot(to, to) / (area * abs(cos_l))
 
 

@@ -34,6 +34,9 @@ TRIANGLE, POINT, SPOT, SUN, ENVIRONMENT = 0, 1, 2, 3, 4
 
 
 class LightTable(NamedTuple):
+    """The kernels take the table as it is, one record argument `lt`, and read its fields
+    by name (lt.cdf, lt.kind[light])."""
+
     kind: np.ndarray
     prim: np.ndarray
     pos: np.ndarray
@@ -47,26 +50,6 @@ class LightTable(NamedTuple):
     tri_light: np.ndarray
     env_light: int  # row of the environment, -1 if black
     sun_rows: np.ndarray  # (S,) int32 rows of suns with a disc (angle > 0), hit by escaping rays
-
-
-# The kernels take the table's arrays as one positional tuple, `lt` (numba passes a tuple of
-# arrays as cheaply as one argument each). Its order is declared once here; kernels index it
-# with these LT_* constants only.
-KERNEL_FIELDS = ("kind", "pos", "vec_a", "vec_b", "color", "color_b", "param", "pmf", "cdf")
-LT_KIND = KERNEL_FIELDS.index("kind")
-LT_POS = KERNEL_FIELDS.index("pos")
-LT_VEC_A = KERNEL_FIELDS.index("vec_a")
-LT_VEC_B = KERNEL_FIELDS.index("vec_b")
-LT_COLOR = KERNEL_FIELDS.index("color")
-LT_COLOR_B = KERNEL_FIELDS.index("color_b")
-LT_PARAM = KERNEL_FIELDS.index("param")
-LT_PMF = KERNEL_FIELDS.index("pmf")
-LT_CDF = KERNEL_FIELDS.index("cdf")
-
-
-def kernel_arrays(table: LightTable) -> tuple:
-    """The `lt` tuple the kernels take (see KERNEL_FIELDS)."""
-    return tuple(getattr(table, field) for field in KERNEL_FIELDS)
 
 
 def _luminance(c) -> float:
