@@ -59,7 +59,7 @@ def _scalar(lt, md, stack, o, d, tmax, beta, light, g, use_eq, seed, mis, out):
         x = (oo[0] + t * dd[0], oo[1] + t * dd[1], oo[2] + t * dd[2])
         wi, dist, le, pdf, _ = connect_light(lt, light[j], lp, x, hashed_uniform(key, dim),
                                              hashed_uniform(key, dim + 1))
-        p_light = pdf * lt[7][light[j]]
+        p_light = pdf * lt.pmf[light[j]]
         ph = hg_eval(g, dot(dd, wi))
         w = p_light * p_light / (p_light * p_light + ph * ph) if mis else 1.0
         live = max3(wn) > 0.0 and p_light > 0.0 and max3(le) > 0.0
@@ -134,13 +134,12 @@ def test_batch_matches_the_scalar_connection(medium_kw, g, mis, with_transmittan
     scene = cornell_box(8, 1, medium=Medium("m", "homogeneous", g=g, **medium_kw) if medium_kw else fog(g))
     cs = compile_scene(scene)
     lt = cs.lights
-    lt = (lt.kind, lt.pos, lt.vec_a, lt.vec_b, lt.color, lt.color_b, lt.param, lt.pmf, lt.cdf)
     stack = np.array([0, -1, -1, -1], np.int32)
     g = float(cs.media.params[0, P_G])  # as stored (float32), which the scalar phase sampling reads
     n = NB.CHUNK  # one full pass (record writes rows 0..CHUNK-1 unchecked)
     rng = np.random.default_rng(11)
     o, d, tmax, beta = _rays(cs, n, rng)
-    light = rng.integers(0, len(lt[7]), n).astype(np.int32)
+    light = rng.integers(0, len(lt.pmf), n).astype(np.int32)
     use_eq = rng.random(n) < 0.8
     nb = NB.NeeBatch().arrays()
     roulette = rng.random(n) < 0.5
