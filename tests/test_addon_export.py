@@ -9,6 +9,7 @@ values computed independently (Blender's own projection, Cycles' formulas).
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -21,6 +22,7 @@ pytestmark = pytest.mark.bpy
 
 BODY = r'''
 import math
+from dataclasses import replace
 import bpy
 import bpy_helpers as H
 from bpy_extras.object_utils import world_to_camera_view
@@ -200,6 +202,9 @@ def build_main_scene():
     mirrored = cube("Mirrored", (0, 0, 5), 0.5, None); mirrored.scale = (-1, 1, 1)
     hidden = cube("Hidden", (5, 5, 5), 0.5, None); hidden.hide_render = True
     H.uv_sphere("Sphere", (-3, 0, 0), 0.5, None, rings=8, segments=16)
+    # A material as bpy.data.materials.new() makes it, and an object whose only slot is empty.
+    H.floor_plane("Plane new default", 0.5, bpy.data.materials.new("New Default"), z=-6.0)
+    empty_slot = cube("Empty Slot", (0, 6, 0), 0.5, None); empty_slot.data.materials.append(None)
     two = cube("TwoMaterials", (6, 0, 0), 0.5, m["principled"]); two.data.materials.append(m["plain"])
     for index, polygon in enumerate(two.data.polygons):
         polygon.material_index = index % 2
@@ -403,8 +408,16 @@ def test_material_ids_follow_slots_and_text_is_meshed(exported):
     assert list(two.material_ids) == [0, 0, 1, 1] * 3
     assert mesh(scene, "Text").indices.shape[0] > 10
     assert mesh(scene, "Instancer0/Item").materials == ["Haze Default Surface"]
-    default = material(scene, "Haze Default Surface")
-    assert [(lobe.kind, lobe.color) for lobe in default.lobes] == [("diffuse", (0.8, 0.8, 0.8))]
+    assert mesh(scene, "Empty Slot").materials == ["Haze Default Surface"]
+
+
+def test_objects_without_a_material_get_a_new_materials_surface(exported):
+    """Cycles renders an object without a material (or with an empty slot) exactly as one
+    with a material fresh from bpy.data.materials.new(): a default Principled BSDF."""
+    scene = exported["main_scene"]
+    default, new = material(scene, "Haze Default Surface"), material(scene, "New Default")
+    assert [lobe.kind for lobe in default.lobes] == ["plastic"]
+    assert replace(default, name=new.name) == new
 
 
 def project(camera, film, point):

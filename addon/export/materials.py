@@ -33,8 +33,15 @@ BLACK = (0.0, 0.0, 0.0)
 
 
 def default_material() -> Material:
-    """Cycles' surface for objects without a material: 0.8 grey diffuse."""
-    return Material(DEFAULT_MATERIAL_NAME, lobes=[Lobe("diffuse", color=(0.8, 0.8, 0.8))])
+    """Cycles' surface for objects without a material, or with an empty slot. In Blender 5.0
+    that is a new material's Principled BSDF as it comes (Base Color 0.8, Roughness 0.5,
+    IOR 1.5, Specular IOR Level 0.5, Multiscatter GGX): Cycles renders the two identically.
+    Written out here because an export must not create a material in the user's file;
+    tests/test_addon_export.py checks it against the conversion of bpy.data.materials.new()."""
+    grey = float(np.float32(0.8))  # Blender stores the socket's 0.8 as float32
+    principled = Term("plastic", np.ones(3), color=(grey, grey, grey), roughness=0.5, ior=1.5,
+                      multiscatter=True)
+    return surface_material(DEFAULT_MATERIAL_NAME, [principled], Messages())
 
 
 def medium_name(owner_name: str) -> str:
