@@ -30,3 +30,18 @@ def test_motion_blur_is_warned_about_once_naming_the_scene():
 
 def test_non_square_pixels_are_warned_about():
     assert warnings_for(pixel_aspect_x=2.0) == ["Scene 'Scene': non-square pixel aspect is ignored"]
+
+
+def test_hair_particle_systems_are_warned_about_by_name():
+    from addon.export.scene import warn_hair_particles
+
+    def system(name, kind, render_type):
+        return SimpleNamespace(name=name, settings=SimpleNamespace(type=kind, render_type=render_type))
+
+    obj = SimpleNamespace(name="Head", particle_systems=[system("Fur", "HAIR", "PATH"),
+                                                         system("Sparks", "EMITTER", "OBJECT"),
+                                                         system("Pebbles", "HAIR", "COLLECTION")])
+    messages = Messages()
+    warn_hair_particles(obj, messages)
+    assert messages.warnings == ["Object 'Head': hair particle system 'Fur' is not rendered "
+                                 "(Haze does not render hair yet)"]

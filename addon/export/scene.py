@@ -75,6 +75,15 @@ def is_rendered(instance, render_depsgraph: bool) -> bool:
     return render_depsgraph or original is None or not original.hide_render
 
 
+def warn_hair_particles(obj, messages: Messages) -> None:
+    """Hair particle systems drawn as strands: Cycles renders them as curves, Haze not yet."""
+    for system in getattr(obj, "particle_systems", ()):
+        settings = system.settings
+        if settings.type == "HAIR" and settings.render_type == "PATH":
+            messages.warn(object_subject(obj.name), f"hair particle system '{system.name}' is not rendered "
+                          "(Haze does not render hair yet)")
+
+
 def used_images(images: list, materials: list) -> list:
     """The images some exported material's program reads (each once)."""
     read = {name for m in materials if m.program is not None for name in m.program.images}
@@ -218,6 +227,9 @@ def export_scene(depsgraph, film: Film | None = None, render_depsgraph: bool = T
     emitters: list = []
     volumes = VolumeExporter(library, messages, scene.frame_current, scene.frame_subframe)
     for instance in depsgraph.object_instances:
+        if not instance.is_instance and instance.object.type == "MESH" and (
+                render_depsgraph or not getattr(instance.object.original, "hide_render", False)):
+            warn_hair_particles(instance.object, messages)  # even where the emitter itself is hidden
         if not is_rendered(instance, render_depsgraph):
             continue
         kind = instance.object.type
