@@ -102,7 +102,8 @@ class HazeRenderSettings(bpy.types.PropertyGroup):
     )
     workers: IntProperty(
         name="Workers",
-        description="Worker processes rendering in parallel (0 = one per CPU core)",
+        description="Worker processes rendering in parallel (0 = automatic: Blender's Threads setting, "
+        "at most the cores this process may use)",
         default=0,
         min=0,
         soft_max=64,

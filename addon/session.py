@@ -252,7 +252,7 @@ class RenderSession:
     def _workers(self) -> int:
         from .export.scene import worker_count
 
-        return worker_count(self.settings)
+        return worker_count(self.settings, getattr(self.depsgraph.scene, "render", None))
 
     def _report_warnings(self, warnings: list[str]) -> None:
         if self.preview:

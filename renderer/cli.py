@@ -11,6 +11,7 @@ import time
 from pathlib import Path
 
 from .cluster import ClusterError  # dask itself loads only for a --cluster render
+from .cores import usable_cores
 from .errors import SceneError
 
 # The exit status of a process ended by Ctrl-C (128 + SIGINT), as shells report it.
@@ -45,7 +46,8 @@ def _parser() -> argparse.ArgumentParser:
         "--target-error", type=_nonnegative_float, default=0.0,
         help="stop once estimated relMSE <= this (0 = off)",
     )
-    r.add_argument("--workers", type=int, default=os.cpu_count() or 1, help="processes (default: all cores)")
+    r.add_argument("--workers", type=int, default=usable_cores(),
+                   help="processes (default: the cores this process may use: its CPU affinity and quota)")
     r.add_argument("--cluster", default="", metavar="ADDRESS|local",
                    help="render on a running Dask cluster (tcp://HOST:8786), or 'local' for a Dask "
                    "LocalCluster of --workers processes; the same image bits as without")

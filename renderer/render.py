@@ -34,7 +34,6 @@ kernel; the command line always uses the pool.
 
 from __future__ import annotations
 
-import os
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -42,6 +41,7 @@ from contextlib import contextmanager
 import numpy as np
 
 from .compile import CompiledScene, compile_scene
+from .cores import usable_cores
 from .film import Film
 from .integrator.wavefront import Tracer
 from .memory import release_free_memory
@@ -248,4 +248,5 @@ def render(scene: Scene, workers: int = 1) -> np.ndarray:
 
 
 def default_workers() -> int:
-    return max(1, os.cpu_count() or 1)
+    """One worker per core this process may use (renderer.cores)."""
+    return usable_cores()

@@ -8,11 +8,11 @@ mesh, so thousands of instances do not become thousands of meshes.
 
 from __future__ import annotations
 
-import os
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from renderer.cores import usable_cores
 from renderer.scene import Film, IntegratorSettings, Scene
 
 from .camera import export_camera, film_size, render_region
@@ -53,8 +53,17 @@ def integrator_settings(haze_settings) -> IntegratorSettings:
     )
 
 
-def worker_count(haze_settings) -> int:
-    return int(haze_settings.workers) or (os.cpu_count() or 1)
+def worker_count(haze_settings, render=None) -> int:
+    """Haze's Workers setting, or when it is 0 (automatic) Blender's Threads (Render >
+    Performance, or `blender -t N`, which Blender reports as render.threads) capped by the
+    cores this process may use (its CPU affinity and quota, renderer.cores)."""
+    if int(haze_settings.workers) > 0:
+        return int(haze_settings.workers)
+    cores = usable_cores()
+    if render is None:
+        return cores
+    threads = max(1, int(render.threads))
+    return threads if render.threads_mode == "FIXED" else min(threads, cores)
 
 
 def instance_group(instance) -> str:
