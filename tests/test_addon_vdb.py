@@ -213,6 +213,15 @@ def main():
     for frame in (1, 2):
         bpy.context.scene.frame_set(frame)
         report[f"seq{frame}"] = medium_arrays(f"seq{frame}", export())
+    # Frame 3 of a three-frame sequence whose third file is missing: Blender loads no grids
+    # (Cycles renders nothing there), so Haze renders nothing and says why, never a
+    # neighbouring frame's file.
+    obj.data.frame_duration = 3
+    bpy.context.scene.frame_set(3)
+    missing = export()
+    grids = obj.evaluated_get(bpy.context.evaluated_depsgraph_get()).data.grids
+    report["seq_missing"] = {"media": len(missing.scene.media), "warnings": missing.warnings,
+                             "grids": len(grids)}
     np.savez("arrays.npz", **ARRAYS)
     return report
 '''
@@ -291,6 +300,14 @@ def test_vdb_sequence_exports_each_frames_file(exported):
 
 
 @pytest.mark.bpy
+def test_a_missing_sequence_frame_renders_nothing_and_says_so(exported):
+    missing = exported[0]["seq_missing"]
+    assert missing["grids"] == 0  # Blender itself loads nothing for the frame
+    assert missing["media"] == 0
+    assert missing["warnings"] == ["Object 'Sequence': has no grids (an empty volume or a file that did not "
+                                   "load); it is not rendered"]
+
+
 def test_a_fire_is_read_sparsely_as_the_sampler_reads_it(exported):
     """A .vdb fire (density, flame and temperature grids; flame as Emission Strength,
     blackbody from the temperature): read into bricks, flame and temperature included, with
