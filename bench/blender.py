@@ -6,7 +6,7 @@ measurement instead of the whole run, and each run gets fresh HOME / BLENDER_USE
 folders so nothing of the developer's own Blender setup is read or changed. The scripts run
 with tests/ and examples/ on their sys.path (not the repository root: Haze, and with it
 `renderer`, comes from the installed extension), so they import the Blender-side helpers of
-tests/bpy_helpers.py (enable_addon, configure_cycles, render_exr, scene builders).
+tests/helpers/bpy_helpers.py (enable_addon, configure_cycles, render_exr, scene builders).
 """
 
 from __future__ import annotations
@@ -41,7 +41,7 @@ for _path in {paths!r}:
         sys.path.insert(0, _path)
 """
 
-ADDON_MODE_ENV = "HAZE_TEST_ADDON"  # tests/bpy_helpers.py reads it on the Blender side
+ADDON_MODE_ENV = "HAZE_TEST_ADDON"  # tests/helpers/bpy_helpers.py reads it on the Blender side
 
 EPILOGUE = """
 if __name__ == "__main__":

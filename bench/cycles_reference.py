@@ -4,7 +4,7 @@
 
 The scene (renderer.scenefile format) is rebuilt in bpy with the same world coordinates the
 add-on exports (Blender's world space is the renderer's), then rendered once per (seed,
-sample count) with Cycles set up as an unbiased reference (tests/bpy_helpers.configure_cycles:
+sample count) with Cycles set up as an unbiased reference (tests/helpers/bpy_helpers.configure_cycles:
 box filter of width 1, no denoising, clamping or adaptive sampling; every bounce limit equal
 to the scene's max_bounces). Each render writes OUT_DIR/cycles_s{seed}_n{samples}.exr; the
 wall time of each render call (scene sync, BVH build, sampling, EXR write) goes to
@@ -26,7 +26,7 @@ outermost half voxel, so grids must be 0 on their faces (the paper's generator i
 
 The command re-runs itself in a private Blender environment (bench.blender's); that re-run
 is the Blender side, and puts tests/ and examples/ on its own sys.path for the Blender-side
-helpers of tests/bpy_helpers.py (configure_cycles, render_exr, new_object: the tests' Cycles
+helpers of tests/helpers/bpy_helpers.py (configure_cycles, render_exr, new_object: the tests' Cycles
 set-up) and examples/blender_cornell.py, as run_blender's scripts do. The process that
 starts it (a user's `python -m bench cycles_reference`, or bench/convergence.py) imports
 nothing from tests/.
@@ -182,7 +182,8 @@ def blender_material(name: str, material: Material | None, medium: Medium | None
 
 def add_mesh(mesh: Mesh, materials: dict[str, Material], media: dict[str, Medium]) -> None:
     import bpy
-    from bpy_helpers import new_object
+
+    from helpers.bpy_helpers import new_object
 
     if mesh.normals is not None:
         raise NotImplementedError(f"mesh {mesh.name}: shading normals")
@@ -323,7 +324,7 @@ def build_scene(haze: Scene):
 
 
 def timed_render(scene, path: Path, samples: int, max_bounces: int, seed: int, threads: int) -> float:
-    from bpy_helpers import configure_cycles, render_exr
+    from helpers.bpy_helpers import configure_cycles, render_exr
 
     configure_cycles(scene, samples, max_bounces, seed, threads)
     start = time.perf_counter()

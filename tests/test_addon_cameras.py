@@ -23,8 +23,8 @@ import numpy as np
 import OpenEXR
 import pytest
 
-from bench.blender import run_blender, shared_numba_cache
 from bench.comparison import assert_agree, compare_images
+from helpers.blender_runs import blender_fixture
 
 pytestmark = [pytest.mark.bpy, pytest.mark.slow]
 
@@ -46,7 +46,7 @@ BODY = rf'''
 import math
 import os
 import bpy
-import bpy_helpers as H
+from helpers import bpy_helpers as H
 import blender_cornell as C
 
 RUNS = {RUNS}
@@ -195,12 +195,7 @@ def main():
 '''
 
 
-@pytest.fixture(scope="module")
-def renders(tmp_path_factory):
-    run = run_blender(BODY, tmp_path_factory.mktemp("cameras"), timeout=3600,
-                      numba_cache=shared_numba_cache())
-    assert run.returncode == 0 and run.result, run.describe()
-    return run.result
+renders = blender_fixture(BODY, "cameras", timeout=3600)
 
 
 def read_rgba(path: str | Path) -> np.ndarray:
@@ -224,12 +219,12 @@ def test_camera_agrees_with_cycles(renders, case):
 
 # The row of the alpha image where the wall's top edge (z 1.5 at y 2) crosses the sky, and
 # the exact share of that row's pixels the wall covers (the camera's rays through the row,
-# 1e5 of them, as tests/pass_stage.py casts them).
+# 1e5 of them, as tests/helpers/pass_stage.py casts them).
 WALL_EDGE_ROW = 12
 
 
 def wall_edge_coverage(height: int = 48) -> float:
-    from pass_stage import CAMERA, LENS, SENSOR, TILT
+    from helpers.pass_stage import CAMERA, LENS, SENSOR, TILT
 
     y = 0.5 - (WALL_EDGE_ROW + (np.arange(100000) + 0.5) / 100000) / height
     c, s = np.cos(TILT), np.sin(TILT)
@@ -264,7 +259,7 @@ def test_transparent_film_alpha_is_the_edge_coverage(renders):
     row = haze[:, WALL_EDGE_ROW, clear].mean(axis=1)  # per run
     sigma = row.std(ddof=1) / np.sqrt(len(row))
     exact = wall_edge_coverage()
-    from block_stats import t_quantile
+    from helpers.block_stats import t_quantile
 
     limit = t_quantile(1.0 - 1e-3 / 2.0, len(row) - 1) * sigma + 1e-5  # two-sided, alpha 1e-3
     assert abs(row.mean() - exact) <= limit, (row.mean(), exact, sigma)

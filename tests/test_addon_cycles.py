@@ -27,8 +27,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bench.blender import run_blender, shared_numba_cache
 from bench.comparison import assert_agree, compare_images
+from helpers.blender_runs import blender_fixture
 from renderer.imageio import read_exr
 
 pytestmark = [pytest.mark.bpy, pytest.mark.slow]
@@ -50,7 +50,7 @@ SAMPLES = {
 BODY = rf'''
 import math
 import bpy
-import bpy_helpers as H
+from helpers import bpy_helpers as H
 import blender_cornell as C
 
 SIZE = {SIZE}
@@ -170,11 +170,7 @@ def main():
 '''
 
 
-@pytest.fixture(scope="module")
-def renders(tmp_path_factory):
-    run = run_blender(BODY, tmp_path_factory.mktemp("cycles"), timeout=1800, numba_cache=shared_numba_cache())
-    assert run.returncode == 0 and run.result, run.describe()
-    return run.result
+renders = blender_fixture(BODY, "cycles", timeout=1800)
 
 
 def stack(paths: list[str]) -> np.ndarray:

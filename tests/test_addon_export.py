@@ -10,11 +10,13 @@ from __future__ import annotations
 
 import math
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pytest
 
-from bench.blender import run_blender, shared_numba_cache
+from bench.blender import BlenderRun
+from helpers.blender_runs import blender_fixture, blender_result
 from renderer.scenefile import load_scene
 from renderer.shading.program import BIND_FIELDS
 
@@ -24,7 +26,7 @@ BODY = r'''
 import math
 from dataclasses import replace
 import bpy
-import bpy_helpers as H
+from helpers import bpy_helpers as H
 from bpy_extras.object_utils import world_to_camera_view
 from mathutils import Vector
 
@@ -325,19 +327,15 @@ def main():
 '''
 
 
-@pytest.fixture(scope="module")
-def exported(tmp_path_factory, numba_cache_dir):
-    run = run_blender(BODY, tmp_path_factory.mktemp("export"), timeout=600, numba_cache=numba_cache_dir)
-    assert run.returncode == 0 and run.result, run.describe()
+def with_scenes(run: BlenderRun, folder: Path) -> dict:
+    """The run's report with the two scenes it exported, loaded."""
     report = run.result
     report["main_scene"] = load_scene(report["main"]["folder"])
     report["viewport_scene"] = load_scene(report["viewport"]["folder"])
     return report
 
 
-@pytest.fixture(scope="module")
-def numba_cache_dir():
-    return shared_numba_cache()
+exported = blender_fixture(BODY, "export", timeout=600, read=with_scenes)
 
 
 def mesh(scene, name):
@@ -645,7 +643,7 @@ def test_groups_muted_nodes_and_unsupported_closures(exported):
 
 REGISTER_BODY = r'''
 import bpy
-import bpy_helpers as H
+from helpers import bpy_helpers as H
 
 
 def engine_selectable():
@@ -690,8 +688,7 @@ def main():
 
 
 def test_register_and_unregister_cleanly(tmp_path):
-    run = run_blender(REGISTER_BODY, tmp_path, timeout=300)
-    assert run.returncode == 0 and run.result, run.describe()
+    run = blender_result(REGISTER_BODY, tmp_path, timeout=300, compiles=False)
     registered, unregistered = run.result["registered"], run.result["unregistered"]
     assert all(registered[key] for key in ("engine", "settings", "own_panel", "operator"))
     assert registered["panels"] == {"RENDER_PT_format": True, "RENDER_PT_color_management": True,

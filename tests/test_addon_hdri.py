@@ -29,8 +29,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bench.blender import run_blender, shared_numba_cache
 from bench.comparison import assert_agree, compare_images
+from helpers.blender_runs import blender_fixture
 from renderer.imageio import read_exr
 
 pytestmark = [pytest.mark.bpy, pytest.mark.slow]
@@ -47,7 +47,7 @@ PROJECTIONS = tuple(SAMPLES)
 BODY = rf'''
 import os
 import time
-import bpy_helpers as H
+from helpers import bpy_helpers as H
 import blender_materials as M
 
 SIZE = {SIZE}
@@ -75,11 +75,7 @@ def main():
 '''
 
 
-@pytest.fixture(scope="module")
-def renders(tmp_path_factory):
-    run = run_blender(BODY, tmp_path_factory.mktemp("hdri"), timeout=1800, numba_cache=shared_numba_cache())
-    assert run.returncode == 0 and run.result, run.describe()
-    return run.result
+renders = blender_fixture(BODY, "hdri", timeout=1800)
 
 
 def stack(paths: list[str]) -> np.ndarray:

@@ -15,17 +15,17 @@ write: Glossy Color is compared away from the glass ball. Where every sample of 
 pixel sees the same surface the passes are deterministic in both renderers and must agree
 to float precision; elsewhere (silhouettes, and the Principled layer's albedo, which
 varies with the view angle across a pixel) 8x8 block means agree within the runs' noise
-(Welch t-tests, tests/block_stats.py).
+(Welch t-tests, tests/helpers/block_stats.py).
 """
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
-from block_stats import PRECISION, block_tests, worst
-from pass_stage import dilate, hits_sphere, pixel_rays, read_passes
 
-from bench.blender import run_blender, shared_numba_cache
+from helpers.blender_runs import blender_fixture
+from helpers.block_stats import PRECISION, block_tests, worst
+from helpers.pass_stage import dilate, hits_sphere, pixel_rays, read_runs
 
 pytestmark = [pytest.mark.bpy, pytest.mark.slow]
 
@@ -55,9 +55,9 @@ BODY = rf'''
 import math
 import os
 import bpy
-import bpy_helpers as H
+from helpers import bpy_helpers as H
 import blender_cornell as C
-import pass_stage as S
+from helpers import pass_stage as S
 
 SIZE = {SIZE!r}
 SAMPLES = {SAMPLES}
@@ -112,28 +112,14 @@ def main():
     scene = stage()
     view_layer = scene.view_layers[0]
     passes(view_layer, True)
-    out = {{"cycles": [], "haze": []}}
-    for run in range(RUNS):
-        H.configure_cycles(scene, SAMPLES, 3, seed=run + 1)
-        out["cycles"].append(S.write_multilayer(scene, os.path.join(os.getcwd(), f"cycles_{{run}}.exr")))
-        H.configure_haze(scene, SAMPLES, 3, seed=run + 1)
-        out["haze"].append(S.write_multilayer(scene, os.path.join(os.getcwd(), f"haze_{{run}}.exr")))
+    out = S.render_runs(scene, RUNS, SAMPLES)
     passes(view_layer, False)
     out["plain"] = S.write_multilayer(scene, os.path.join(os.getcwd(), "plain.exr"))
     return out
 '''
 
 
-@pytest.fixture(scope="module")
-def renders(tmp_path_factory):
-    run = run_blender(BODY, tmp_path_factory.mktemp("light_passes"), timeout=3600,
-                      numba_cache=shared_numba_cache())
-    assert run.returncode == 0 and run.result, run.describe()
-    return {
-        "cycles": [read_passes(p) for p in run.result["cycles"]],
-        "haze": [read_passes(p) for p in run.result["haze"]],
-        "plain": read_passes(run.result["plain"]),
-    }
+renders = blender_fixture(BODY, "light_passes", timeout=3600, read=read_runs)
 
 
 def stack(renders, name: str) -> np.ndarray:

@@ -13,7 +13,7 @@ from fnmatch import fnmatch
 
 import pytest
 
-from bench.blender import run_blender, shared_numba_cache
+from helpers.blender_runs import blender_fixture
 
 pytestmark = [pytest.mark.bpy]
 
@@ -111,7 +111,7 @@ BODY = r'''
 import types
 
 import bpy
-import bpy_helpers as H
+from helpers import bpy_helpers as H
 
 
 class Layout:
@@ -181,11 +181,7 @@ def main():
 '''
 
 
-@pytest.fixture(scope="module")
-def panels(tmp_path_factory):
-    run = run_blender(BODY, tmp_path_factory.mktemp("panels"), timeout=600, numba_cache=shared_numba_cache())
-    assert run.returncode == 0 and run.result, run.describe()
-    return run.result
+panels = blender_fixture(BODY, "panels", timeout=600)
 
 
 def expected(name: str) -> tuple[bool, str] | None:

@@ -15,21 +15,21 @@ denoising_passes.h, see renderer/integrator/aovs.py):
 * Normal, Mist (World > Mist Pass: linear from 3 m to 8 m), Denoising Normal and Denoising
   Albedo are means over the samples: exact where every sample sees the same surface
   (diffuse interiors, the sky: to float precision); elsewhere 8x8 block means agree within
-  the noise of the RUNS independent renders (Welch t-tests, tests/block_stats.py), tested
+  the noise of the RUNS independent renders (Welch t-tests, tests/helpers/block_stats.py), tested
   apart over the glass ball (where it does not also see the fog cube's outline). At the
   fog cube's outline Cycles scatters more than the cube's
   optical depth allows; there Haze's Normal is compared with the exact transmittance
-  instead (tests/pass_stage.py).
+  instead (tests/helpers/pass_stage.py).
 """
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
-from block_stats import PRECISION, block_tests, t_quantile, worst
-from pass_stage import fog_silhouette, glass_region, read_passes, wall_behind_fog
 
-from bench.blender import run_blender, shared_numba_cache
+from helpers.blender_runs import blender_fixture
+from helpers.block_stats import PRECISION, block_tests, t_quantile, worst
+from helpers.pass_stage import fog_silhouette, glass_region, read_runs, wall_behind_fog
 
 pytestmark = [pytest.mark.bpy, pytest.mark.slow]
 
@@ -41,8 +41,8 @@ MEAN_PASSES = ("Normal", "Mist", "Denoising Normal", "Denoising Albedo")
 
 BODY = rf'''
 import os
-import bpy_helpers as H
-import pass_stage as S
+from helpers import bpy_helpers as H
+from helpers import pass_stage as S
 
 SIZE = {SIZE!r}
 SAMPLES = {SAMPLES}
@@ -69,12 +69,7 @@ def main():
     scene = stage()
     view_layer = scene.view_layers[0]
     passes(view_layer, True)
-    out = {{"cycles": [], "haze": []}}
-    for run in range(RUNS):
-        H.configure_cycles(scene, SAMPLES, 3, seed=run + 1)
-        out["cycles"].append(S.write_multilayer(scene, os.path.join(os.getcwd(), f"cycles_{{run}}.exr")))
-        H.configure_haze(scene, SAMPLES, 3, seed=run + 1)
-        out["haze"].append(S.write_multilayer(scene, os.path.join(os.getcwd(), f"haze_{{run}}.exr")))
+    out = S.render_runs(scene, RUNS, SAMPLES)
     # Depth of other cameras (sample 0 only, so a few samples do): orthographic, and
     # equirectangular (distance from the camera).
     camera = scene.camera
@@ -95,17 +90,7 @@ def main():
 '''
 
 
-@pytest.fixture(scope="module")
-def renders(tmp_path_factory):
-    run = run_blender(BODY, tmp_path_factory.mktemp("passes"), timeout=3600, numba_cache=shared_numba_cache())
-    assert run.returncode == 0 and run.result, run.describe()
-    return {
-        "cycles": [read_passes(p) for p in run.result["cycles"]],
-        "haze": [read_passes(p) for p in run.result["haze"]],
-        "plain": read_passes(run.result["plain"]),
-        **{key: read_passes(path) for key, path in run.result.items()
-           if key.endswith(("_ortho", "_equirect"))},
-    }
+renders = blender_fixture(BODY, "passes", timeout=3600, read=read_runs)
 
 
 def neighbourhood_range(image: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -162,7 +147,7 @@ def test_mean_passes_exact_where_deterministic(renders, name):
 @pytest.mark.parametrize("name", MEAN_PASSES)
 def test_mean_passes_agree_with_cycles_within_noise(renders, name):
     """8x8 block means outside the fog cube's outline and the glass ball (tested below),
-    by Welch t-tests from the runs' own spread (tests/block_stats.py), family alpha 1e-3."""
+    by Welch t-tests from the runs' own spread (tests/helpers/block_stats.py), family alpha 1e-3."""
     haze, cycles = stack(renders["haze"], name), stack(renders["cycles"], name)
     mask = ~(fog_silhouette(SIZE) | glass_region(SIZE))
     tests = block_tests(haze, cycles, mask)
@@ -200,7 +185,7 @@ def band_t(images: np.ndarray, expected: np.ndarray, band: np.ndarray) -> tuple[
 def test_normal_at_the_fog_outline_matches_its_transmittance(renders):
     """Where camera rays cross a short stretch of the fog cube before the wall, Normal is the
     wall's (0, -1, 0) times the chance of crossing unscattered: -exp(-sigma_t length)
-    averaged over the pixel (tests/pass_stage.py computes it exactly). Haze agrees within
+    averaged over the pixel (tests/helpers/pass_stage.py computes it exactly). Haze agrees within
     noise (measured: t 2.1 over the 53 pixels). Cycles does not (t 26: its pixels there lie
     up to 0.2 closer to 0 than the transmittance, i.e. it scatters more than the cube's
     optical depth allows at the cube's outline), which is why the Cycles comparison leaves
@@ -225,7 +210,7 @@ def test_unrequested_passes_are_absent(renders):
 DENOISE_BODY = r'''
 import os
 import bpy
-import bpy_helpers as H
+from helpers import bpy_helpers as H
 import blender_cornell as C
 
 
@@ -259,12 +244,7 @@ def rel_mse(image: np.ndarray, reference: np.ndarray) -> float:
     return float(np.mean((image - reference) ** 2 / (reference ** 2 + 1e-2)))
 
 
-@pytest.fixture(scope="module")
-def denoised(tmp_path_factory):
-    run = run_blender(DENOISE_BODY, tmp_path_factory.mktemp("denoise"), timeout=3600,
-                      numba_cache=shared_numba_cache())
-    assert run.returncode == 0 and run.result, run.describe()
-    return {name: read_passes(path) for name, path in run.result.items()}
+denoised = blender_fixture(DENOISE_BODY, "denoise", timeout=3600, read=read_runs)
 
 
 def test_denoise_through_blender_keeps_the_noisy_image(denoised):

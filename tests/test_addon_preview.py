@@ -14,16 +14,19 @@ on this shared 2-core machine it varies with the other jobs' load).
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
 
-from bench.blender import run_blender, shared_numba_cache
+from bench.blender import BlenderRun
+from helpers.blender_runs import blender_fixture
 
 pytestmark = [pytest.mark.bpy, pytest.mark.slow]
 
 BODY = r'''
 import time
 import bpy
-import bpy_helpers as H
+from helpers import bpy_helpers as H
 import blender_cornell as C
 session = H.addon_module("session")
 
@@ -93,13 +96,12 @@ def main():
 '''
 
 
-@pytest.fixture(scope="module")
-def previews(tmp_path_factory):
-    run = run_blender(BODY, tmp_path_factory.mktemp("preview"), timeout=1800,
-                      numba_cache=shared_numba_cache())
-    assert run.returncode == 0 and run.result, run.describe()
+def printed(run: BlenderRun, folder: Path) -> dict:
     print(run.result)
     return run.result
+
+
+previews = blender_fixture(BODY, "preview", timeout=1800, read=printed)
 
 
 def test_previews_are_rendered_by_haze(previews):

@@ -20,19 +20,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bench.blender import run_blender, shared_numba_cache
 from bench.comparison import assert_agree, compare_images
 from bench.procedural_volume_cycles import RUNS, SIZE, scene_body
+from helpers.blender_runs import blender_fixture
 from renderer.imageio import read_exr
 
 pytestmark = [pytest.mark.bpy]
 
-@pytest.fixture(scope="module")
-def exported(tmp_path_factory):
-    """Both scenes exported, not rendered (no kernel compiles: quick)."""
-    run = run_blender(scene_body(), tmp_path_factory.mktemp("exported"), timeout=600)
-    assert run.returncode == 0 and run.result, run.describe()
-    return run.result
+# Both scenes exported, not rendered (no kernel compiles: quick).
+exported = blender_fixture(scene_body, "exported", timeout=600, compiles=False)
 
 
 def test_cloud_exports_as_a_procedural_medium(exported):
@@ -46,13 +42,8 @@ def test_volume_cube_modifier_exports_its_grid(exported):
     assert not case["warnings"], case["warnings"]
 
 
-@pytest.fixture(scope="module")
-def rendered(tmp_path_factory):
-    """Both scenes rendered RUNS times by Cycles and by Haze (one Blender process)."""
-    run = run_blender(scene_body(), tmp_path_factory.mktemp("rendered"), timeout=2400,
-                      numba_cache=shared_numba_cache(), env={"HAZE_TEST_RENDER": "1"})
-    assert run.returncode == 0 and run.result, run.describe()
-    return run.result
+# Both scenes rendered RUNS times by Cycles and by Haze (one Blender process).
+rendered = blender_fixture(scene_body, "rendered", timeout=2400, env={"HAZE_TEST_RENDER": "1"})
 
 
 def _assert_renders_agree(case: dict) -> None:

@@ -13,14 +13,15 @@ import sys
 import numpy as np
 import pytest
 
-from bench.blender import REPO, run_blender, shared_numba_cache
+from bench.blender import REPO, shared_numba_cache
+from helpers.blender_runs import blender_fixture
 from renderer.imageio import read_exr
 
 pytestmark = [pytest.mark.bpy, pytest.mark.slow]
 
 BODY = r'''
 import bpy
-import bpy_helpers as H
+from helpers import bpy_helpers as H
 import blender_cornell as C
 
 OUT = os.getcwd()
@@ -174,11 +175,7 @@ def numba_cache_dir():
     return shared_numba_cache()
 
 
-@pytest.fixture(scope="module")
-def renders(tmp_path_factory, numba_cache_dir):
-    run = run_blender(BODY, tmp_path_factory.mktemp("render"), timeout=900, numba_cache=numba_cache_dir)
-    assert run.returncode == 0 and run.result, run.describe()
-    return run.result
+renders = blender_fixture(BODY, "render", timeout=900)
 
 
 def errors(record):

@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bench.blender import run_blender
+from helpers.blender_runs import blender_fixture, with_arrays
 
 BODY = r'''
 from pathlib import Path
@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 import bpy
 
-import bpy_helpers as H
+from helpers import bpy_helpers as H
 import blender_cornell as C
 
 H.enable_addon()
@@ -89,27 +89,9 @@ def smoke_domain(transform):
     H.enable_addon()
     scene = bpy.context.scene
     C.add_camera(scene, (0.0, -4.0, 1.0), (90.0, 0.0, 0.0), lens=35.0)
-    mesh = bpy.data.meshes.new("Domain")
-    corners = [(x, y, z) for x in (-1, 1) for y in (-1, 1) for z in (0, 2)]
-    mesh.from_pydata(corners, [], [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4),
-                                   (1, 5, 7, 3)])
-    domain = bpy.data.objects.new("Domain", mesh)
-    scene.collection.objects.link(domain)
-    domain.scale = (1.0, 1.0, 1.5)
-    modifier = domain.modifiers.new("Fluid", "FLUID")
-    modifier.show_viewport = False  # the viewport depsgraph never runs the simulation
-    modifier.fluid_type = "DOMAIN"
-    settings = modifier.domain_settings
-    settings.cache_directory = str(Path("smoke_cache").resolve())
-    settings.cache_type = "MODULAR"
-    settings.resolution_max = 16
+    _, mesh, settings = H.gas_domain(scene, (1.0, 1.0, 1.5), str(Path("smoke_cache").resolve()), 16)
     settings.flame_ignition, settings.flame_max_temp = 1.5, 3.0
-    rng = np.random.default_rng(5)
-    shape = (16, 11, 11)  # (nz, ny, nx) of the domain at resolution 16
-    density = np.zeros(shape, np.float32)
-    density[3:12, 2:9, 3:8] = rng.random((9, 7, 5)).astype(np.float32) + 0.05
-    flame = np.zeros(shape, np.float32)
-    flame[4:8, 3:7, 4:7] = rng.random((4, 4, 3)).astype(np.float32)
+    density, flame = H.fire_grids()
     ARRAYS["smoke.values"] = density
     Path("smoke_cache/data").mkdir(parents=True)
     write_grid("smoke_cache/data/fluid_data_0003.vdb", density, transform, (0, 0, 0), (("flame", flame),))
@@ -227,12 +209,7 @@ def main():
 '''
 
 
-@pytest.fixture(scope="module")
-def exported(tmp_path_factory):
-    folder = tmp_path_factory.mktemp("vdb")
-    run = run_blender(BODY, folder, timeout=600)
-    assert run.returncode == 0 and run.result, run.describe()
-    return run.result, dict(np.load(folder / "arrays.npz"))
+exported = blender_fixture(BODY, "vdb", timeout=600, compiles=False, read=with_arrays)
 
 
 def placed(arrays, prefix, start, shape, pad=4, name="density"):

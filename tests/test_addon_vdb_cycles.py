@@ -28,11 +28,14 @@ bpy_helpers.assert_agree (image means within 1 %, 8x8 block means within their n
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
-from bench.blender import run_blender, shared_numba_cache
+from bench.blender import BlenderRun
 from bench.comparison import assert_agree, compare_images
+from helpers.blender_runs import blender_fixture
 from renderer.imageio import read_exr
 
 pytestmark = [pytest.mark.bpy, pytest.mark.slow]
@@ -49,7 +52,7 @@ from pathlib import Path
 import numpy as np
 import bpy
 
-import bpy_helpers as H
+from helpers import bpy_helpers as H
 import blender_cornell as C
 
 RUNS, SIZE, BOUNCES, SAMPLES = {runs}, {size}, {bounces}, {samples}
@@ -191,22 +194,9 @@ DOMAIN_RES = (21, 21, 32)  # x, y, z cells of the 1 x 1 x 1.5 domain at resoluti
 def smoke_scene():
     """A gas domain over the floor whose frame-3 cache file is written here, not baked."""
     scene = stage()
-    mesh = bpy.data.meshes.new("Domain")
-    corners = [(x, y, z) for x in (-1, 1) for y in (-1, 1) for z in (0, 2)]
-    mesh.from_pydata(corners, [], [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4),
-                                   (1, 5, 7, 3)])
-    domain = bpy.data.objects.new("Domain", mesh)
-    scene.collection.objects.link(domain)
-    domain.scale = (0.5, 0.5, 0.75)
-    domain.location = (0.0, 0.0, 0.05)
-    modifier = domain.modifiers.new("Fluid", "FLUID")
-    modifier.show_viewport = False  # the viewport depsgraph never runs the simulation
-    modifier.fluid_type = "DOMAIN"
-    settings = modifier.domain_settings
+    domain, mesh, settings = H.gas_domain(scene, (0.5, 0.5, 0.75), str(OUT / "smoke_cache"), 32,
+                                          location=(0.0, 0.0, 0.05))
     settings.domain_type = "GAS"
-    settings.cache_directory = str(OUT / "smoke_cache")
-    settings.cache_type = "MODULAR"
-    settings.resolution_max = 32
     shape = DOMAIN_RES[::-1]
     density = lumps(shape, 7, count=3, width=0.22)
     density[[0, -1]] = 0.0
@@ -284,14 +274,13 @@ def main():
 '''
 
 
-@pytest.fixture(scope="module")
-def renders(tmp_path_factory):
-    folder = tmp_path_factory.mktemp("vdb_cycles")
-    body = BODY.format(runs=RUNS, size=SIZE, bounces=BOUNCES, samples=SAMPLES)
-    run = run_blender(body, folder, timeout=1800, numba_cache=shared_numba_cache())
-    assert run.returncode == 0 and run.result, run.describe()
+def timed(run: BlenderRun, folder: Path) -> dict:
     print("render times (s):", {k: round(v, 1) for k, v in run.result["times"].items()})
-    return run
+    return run.result
+
+
+renders = blender_fixture(BODY.format(runs=RUNS, size=SIZE, bounces=BOUNCES, samples=SAMPLES), "vdb_cycles",
+                          timeout=1800, read=timed)
 
 
 def stacks(case: dict, *keys: str) -> list[np.ndarray]:
@@ -311,7 +300,7 @@ def not_rendered(warnings: list[str]) -> list[str]:
 
 def test_vdb_density_grid_agrees_with_cycles(renders):
     """A float density grid read sparsely (into bricks) from its file, under a lamp."""
-    case = renders.result["float"]
+    case = renders["float"]
     assert case["export"]["media"] == 1 and case["export"]["sparse"] == [True], case["export"]
     assert not case["export"]["warnings"], case["export"]["warnings"]
     haze, cycles = stacks(case, "haze", "cycles")
@@ -322,7 +311,7 @@ def test_vdb_density_grid_agrees_with_cycles(renders):
 def test_vdb_vector_grid_as_density_agrees_with_cycles(renders):
     """Density from a vec3 grid's Z component (Attribute Vector > Separate XYZ > Math); the
     file's float density grid is not read."""
-    case = renders.result["vector"]
+    case = renders["vector"]
     assert case["export"]["media"] == 1, case["export"]
     assert not not_rendered(case["export"]["warnings"]), case["export"]["warnings"]
     haze, cycles = stacks(case, "haze", "cycles")
@@ -338,7 +327,7 @@ def smoke_effect(images: np.ndarray, bare: np.ndarray) -> float:
 def test_smoke_domain_cache_renders_in_haze_like_cycles_reads_the_file(renders):
     """Haze's smoke domain against Cycles rendering the same cached grid as a Volume object
     placed where a domain's cells are (Cycles itself cannot load the cache in this bpy)."""
-    case = renders.result["smoke"]
+    case = renders["smoke"]
     assert case["export"]["media"] == 1, case["export"]
     assert not case["export"]["warnings"], case["export"]["warnings"]
     haze, proxy = stacks(case, "haze", "proxy")
@@ -352,7 +341,7 @@ def test_smoke_domain_cache_renders_in_haze_like_cycles_reads_the_file(renders):
                    "classes have no base classes ('LevelsetGrid' object has no attribute 'setConst' in the "
                    "solver set-up), so Cycles renders the domain empty")
 def test_smoke_domain_agrees_with_cycles(renders):
-    case = renders.result["smoke"]
+    case = renders["smoke"]
     haze, cycles = stacks(case, "haze", "cycles")
     bare = read_exr(case["bare"])
     broken = "'LevelsetGrid' object has no attribute 'setConst'" in renders.stderr

@@ -2,7 +2,7 @@
 passes of the same scene.
 
 One Blender process renders a stage (diffuse floor and wall lit by a sun and a grey sky, a
-cube of scattering fog in front of the wall: tests/pass_stage.py's geometry without the
+cube of scattering fog in front of the wall: tests/helpers/pass_stage.py's geometry without the
 balls) RUNS times with Cycles and with Haze (different seeds) into multilayer EXRs.
 
 Cycles' definitions (kernel/film/light_passes.h, integrator/path_state.h): a camera path's
@@ -13,7 +13,7 @@ is then the sum of its light passes: Emission + Environment + (Direct + Indirect
 for diffuse, glossy and transmission + Volume Direct + Volume Indirect. Checked here:
 * that identity in Cycles' own passes (the partition is what the test relies on);
 * Haze's Volume Direct and Indirect against Cycles' within the runs' noise: Welch t-tests of
-  8x8 block means (tests/block_stats.py) and of each run's image total (the stronger test
+  8x8 block means (tests/helpers/block_stats.py) and of each run's image total (the stronger test
   of a scale error: its relative sigma is about 2%, measured), and Haze's remainder
   Combined - Volume Direct - Volume Indirect against the sum of Cycles' world, emission and
   surface passes the same way;
@@ -25,10 +25,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from block_stats import block_tests, t_quantile, worst
-from pass_stage import fog_length, pixel_rays, read_passes
 
-from bench.blender import run_blender, shared_numba_cache
+from helpers.blender_runs import blender_fixture
+from helpers.block_stats import block_tests, t_quantile, worst
+from helpers.pass_stage import fog_length, pixel_rays, read_runs
 
 pytestmark = [pytest.mark.bpy, pytest.mark.slow]
 
@@ -40,8 +40,8 @@ SURFACE = ("Diffuse", "Glossy", "Transmission")
 
 BODY = rf'''
 import os
-import bpy_helpers as H
-import pass_stage as S
+from helpers import bpy_helpers as H
+from helpers import pass_stage as S
 
 SIZE = {SIZE!r}
 SAMPLES = {SAMPLES}
@@ -57,25 +57,12 @@ def main():
     for kind in ("diffuse", "glossy", "transmission"):
         for part in ("direct", "indirect", "color"):
             setattr(view_layer, f"use_pass_{{kind}}_{{part}}", True)
-    out = {{"cycles": [], "haze": []}}
-    for run in range(RUNS):
-        H.configure_cycles(scene, SAMPLES, 3, seed=run + 1)
-        out["cycles"].append(S.write_multilayer(scene, os.path.join(os.getcwd(), f"cycles_{{run}}.exr")))
-        H.configure_haze(scene, SAMPLES, 3, seed=run + 1)
-        out["haze"].append(S.write_multilayer(scene, os.path.join(os.getcwd(), f"haze_{{run}}.exr")))
+    out = S.render_runs(scene, RUNS, SAMPLES)
     return out
 '''
 
 
-@pytest.fixture(scope="module")
-def renders(tmp_path_factory):
-    run = run_blender(BODY, tmp_path_factory.mktemp("volume_passes"), timeout=1800,
-                      numba_cache=shared_numba_cache())
-    assert run.returncode == 0 and run.result, run.describe()
-    return {
-        "cycles": [read_passes(p) for p in run.result["cycles"]],
-        "haze": [read_passes(p) for p in run.result["haze"]],
-    }
+renders = blender_fixture(BODY, "volume_passes", timeout=1800, read=read_runs)
 
 
 def stack(renders, name: str) -> np.ndarray:

@@ -36,9 +36,9 @@ from addon.volume_grids import (
     smoke_ball_density,
     write_pbrt,
 )
-from bench.blender import run_blender, shared_numba_cache
 from bench.comparison import assert_agree, compare_images
 from examples import media_scenes
+from helpers.blender_runs import blender_fixture, blender_result, with_arrays
 from renderer.imageio import read_exr
 from renderer.media import generators
 from renderer.render import render
@@ -295,7 +295,7 @@ import bpy
 from pathlib import Path
 from mathutils import Matrix
 
-import bpy_helpers as H
+from helpers import bpy_helpers as H
 import blender_cornell as C
 
 H.enable_addon()
@@ -650,28 +650,10 @@ def bad_case():
 def smoke_case():
     """A gas fluid domain read from a synthesised OpenVDB cache file (nothing is simulated)."""
     scene = empty_scene()
-    mesh = bpy.data.meshes.new("Domain")
-    corners = [(x, y, z) for x in (-1, 1) for y in (-1, 1) for z in (0, 2)]
-    mesh.from_pydata(corners, [], [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4),
-                                   (1, 5, 7, 3)])
-    domain = bpy.data.objects.new("Domain", mesh)
-    scene.collection.objects.link(domain)
-    domain.scale = (1.0, 1.0, 1.5)
-    domain.location = (0.2, 0.0, 0.0)
-    modifier = domain.modifiers.new("Fluid", "FLUID")
-    modifier.show_viewport = False  # the viewport depsgraph never runs the simulation
-    modifier.fluid_type = "DOMAIN"
-    settings = modifier.domain_settings
-    settings.cache_directory = str(OUT / "smoke_cache")
-    settings.cache_type = "MODULAR"
-    settings.resolution_max = 16
+    domain, mesh, settings = H.gas_domain(scene, (1.0, 1.0, 1.5), str(OUT / "smoke_cache"), 16,
+                                          location=(0.2, 0.0, 0.0))
     settings.flame_ignition, settings.flame_max_temp = 1.5, 3.0
-    rng = np.random.default_rng(5)
-    shape = (16, 11, 11)  # (nz, ny, nx) of the 2 x 2 x 3 domain at resolution 16
-    density = np.zeros(shape, np.float32)
-    density[3:12, 2:9, 3:8] = rng.random((9, 7, 5)).astype(np.float32) + 0.05
-    flame = np.zeros(shape, np.float32)
-    flame[4:8, 3:7, 4:7] = rng.random((4, 4, 3)).astype(np.float32)
+    density, flame = H.fire_grids()
     ARRAYS["smoke.values"], ARRAYS["smoke.flame_values"] = density, flame
     cache = OUT / "smoke_cache" / "data"
     cache.mkdir(parents=True)
@@ -734,13 +716,7 @@ def main():
 '''
 
 
-@pytest.fixture(scope="module")
-def exported(tmp_path_factory):
-    folder = tmp_path_factory.mktemp("volumes")
-    run = run_blender(EXPORT_BODY, folder, timeout=900)
-    assert run.returncode == 0 and run.result, run.describe()
-    arrays = dict(np.load(folder / "arrays.npz"))
-    return run.result, arrays
+exported = blender_fixture(EXPORT_BODY, "volumes", timeout=900, compiles=False, read=with_arrays)
 
 
 def placed_in(array: np.ndarray, box: np.ndarray, shape) -> np.ndarray:
@@ -1043,7 +1019,7 @@ import math
 import bpy
 import numpy as np
 from pathlib import Path
-import bpy_helpers as H
+from helpers import bpy_helpers as H
 import blender_gallery as G
 
 RUNS, SIZE, SAMPLES, BOUNCES = {runs}, {size}, {samples}, {bounces}
@@ -1071,8 +1047,7 @@ def main():
 def test_smoke_ball_volume_agrees_with_cycles(tmp_path):
     body = CYCLES_BODY.format(runs=CYCLES_RUNS, size=CYCLES_SIZE, samples=CYCLES_SAMPLES,
                               bounces=CYCLES_BOUNCES)
-    run = run_blender(body, tmp_path, timeout=1800, numba_cache=shared_numba_cache())
-    assert run.returncode == 0 and run.result, run.describe()
+    run = blender_result(body, tmp_path, timeout=1800)
     haze = np.stack([read_exr(p) for p in run.result["haze"]])
     cycles = np.stack([read_exr(p) for p in run.result["cycles"]])
     assert haze.shape == cycles.shape == (CYCLES_RUNS, CYCLES_SIZE, CYCLES_SIZE, 3)
@@ -1099,7 +1074,7 @@ FIRE_BODY = r'''
 import bpy
 import numpy as np
 from pathlib import Path
-import bpy_helpers as H
+from helpers import bpy_helpers as H
 import blender_cornell as C
 
 RUNS, SIZE, SAMPLES = {runs}, {size}, {samples}
@@ -1147,8 +1122,7 @@ def main():
 @pytest.mark.slow
 def test_fire_volume_lights_a_wall_like_cycles(tmp_path):
     body = FIRE_BODY.format(runs=FIRE_RUNS, size=FIRE_SIZE, samples=FIRE_SAMPLES)
-    run = run_blender(body, tmp_path, timeout=1800, numba_cache=shared_numba_cache())
-    assert run.returncode == 0 and run.result, run.describe()
+    run = blender_result(body, tmp_path, timeout=1800)
     haze = np.stack([read_exr(p) for p in run.result["haze"]])
     cycles = np.stack([read_exr(p) for p in run.result["cycles"]])
     assert cycles.mean() > 1e-4, "the Cycles image is black: the scene is broken"
@@ -1191,8 +1165,7 @@ FLOOR_FIRE_SAMPLES = (2048, 2048)
 def test_fire_on_a_floor_lights_it_like_cycles(tmp_path):
     body = FLOOR_FIRE_BODY.format(runs=FLOOR_FIRE_RUNS, size=FIRE_SIZE, samples=FLOOR_FIRE_SAMPLES, bounces=1)
     assert "Floor" in body and "BOUNCES = 1" in body
-    run = run_blender(body, tmp_path, timeout=1800, numba_cache=shared_numba_cache())
-    assert run.returncode == 0 and run.result, run.describe()
+    run = blender_result(body, tmp_path, timeout=1800)
     haze = np.stack([read_exr(p) for p in run.result["haze"]])
     cycles = np.stack([read_exr(p) for p in run.result["cycles"]])
     assert cycles.mean() > 1e-4, "the Cycles image is black: the scene is broken"

@@ -8,11 +8,11 @@ import math
 
 import numpy as np
 import pytest
-from render_helpers import render_film
 
 from bench.convergence import haze_curve
 from bench.metrics import film_reference
 from examples.scenes import cornell_fog
+from helpers.films import render_film
 from renderer.denoise import available
 
 pytestmark = [pytest.mark.slow, pytest.mark.skipif(not available(), reason="Open Image Denoise not found")]

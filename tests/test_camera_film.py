@@ -11,9 +11,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from render_helpers import render_film
 
 from examples.scenes import box, cornell_box, furnace_sphere, quad
+from helpers.films import render_film
 from renderer.film import Film
 from renderer.scene import Lobe, Material, Medium, Mesh, Scene
 

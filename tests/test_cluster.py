@@ -21,11 +21,11 @@ import numpy as np
 import pytest
 
 from examples.scenes import cornell_box
+from helpers.films import assert_same_bits
 from renderer import cluster as cluster_module
 from renderer import units as units_module
 from renderer.cluster import LOCAL, ClusterError, connect
 from renderer.cluster_tasks import TOPIC, tracer_builds
-from renderer.film import Film
 from renderer.render import Progress, render_progressive
 from renderer.scene import Scene
 from renderer.units import plan_units
@@ -35,13 +35,6 @@ pytest.importorskip("distributed")
 
 def frames(scene: Scene, **options) -> list[Progress]:
     return list(render_progressive(scene, **options))
-
-
-def assert_same_bits(a: Film, b: Film) -> None:
-    assert np.array_equal(a.n, b.n)
-    assert np.array_equal(a.sum, b.sum)
-    assert np.array_equal(a.sq, b.sq)
-    assert np.array_equal(a.alpha, b.alpha)
 
 
 @pytest.fixture(scope="module")
@@ -194,7 +187,7 @@ ANIMATION_BODY = r'''
 import glob
 import time
 import bpy
-import bpy_helpers as H
+from helpers import bpy_helpers as H
 
 
 def main():
@@ -235,11 +228,10 @@ def main():
 @pytest.mark.bpy
 @pytest.mark.slow
 def test_a_headless_animation_on_a_local_cluster_writes_three_frames_and_the_test_button_refuses(tmp_path):
-    from bench.blender import run_blender, shared_numba_cache
+    from helpers.blender_runs import blender_result
     from renderer.imageio import read_exr
 
-    run = run_blender(ANIMATION_BODY, tmp_path, timeout=900, numba_cache=shared_numba_cache())
-    assert run.returncode == 0 and run.result, run.describe()
+    run = blender_result(ANIMATION_BODY, tmp_path, timeout=900)
     assert run.result["cluster_workers"] == [2], "the frames did not render on one LocalCluster of 2"
     assert "cannot reach the Dask scheduler at tcp://127.0.0.1:1" in run.result["refused"]
     assert run.result["refused_after"] < 10.0

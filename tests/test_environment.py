@@ -11,9 +11,9 @@ import math
 import numpy as np
 import pytest
 from numba import njit
-from render_helpers import render_film
 
 from examples.scenes import quad
+from helpers.films import render_film
 from renderer.compile import compile_scene
 from renderer.errors import SceneError
 from renderer.lights.environment import environment_radiance, sample_environment

@@ -14,7 +14,7 @@ from pathlib import Path
 import pytest
 
 REPO = Path(__file__).resolve().parents[1]
-REPOSITORY_ONLY = ("bench", "tools", "examples", "tests", "bpy_helpers")
+REPOSITORY_ONLY = ("bench", "tools", "examples", "tests", "helpers")  # helpers: tests/helpers/
 
 
 def imported_names(path: Path) -> list[tuple[int, str]]:

@@ -11,9 +11,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from render_helpers import render_film
 
 from examples.scenes import cornell_box, cornell_fog
+from helpers.films import render_film
 from renderer.compile import compile_scene
 from renderer.denoise import available, denoise
 from renderer.film import REL_EPS

@@ -33,8 +33,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bench.blender import run_blender, shared_numba_cache
 from bench.comparison import assert_agree, compare_images
+from helpers.blender_runs import blender_fixture
 from renderer.imageio import read_exr
 
 pytestmark = [pytest.mark.bpy, pytest.mark.slow]
@@ -48,27 +48,11 @@ import math
 import os
 import bpy
 import numpy as np
-import bpy_helpers as H
+from helpers import bpy_helpers as H
 import blender_cornell as C
 from renderer.imageio import write_exr
 
 SIZE = {SIZE}
-
-
-def uv_quad(name, vertices, material, scale=1.0):
-    obj = H.new_object(name, vertices, [(0, 1, 2, 3)], material)
-    uv = obj.data.uv_layers.new(name="UVMap")
-    for loop, (u, v) in zip(obj.data.loops, [(0, 0), (1, 0), (1, 1), (0, 1)]):
-        uv.data[loop.index].uv = (u * scale, v * scale)
-    return obj
-
-
-def node_material(name):
-    material = bpy.data.materials.new(name)
-    H.ensure_nodes(material)
-    tree = material.node_tree
-    tree.nodes.clear()
-    return material, tree, tree.nodes.new("ShaderNodeOutputMaterial")
 
 
 def checker(tree, scale, color1=(1, 1, 1), color2=(0, 0, 0)):
@@ -89,7 +73,7 @@ def mapped(tree, socket, low, high):
 
 
 def checker_emitter():
-    material, tree, out = node_material("Checker Emitter")
+    material, tree, out = C.node_material("Checker Emitter")
     emission = tree.nodes.new("ShaderNodeEmission")
     emission.inputs["Strength"].default_value = 3.0
     tex = checker(tree, 3.0, (1.0, 0.8, 0.3), (0.1, 0.3, 1.0))
@@ -99,7 +83,7 @@ def checker_emitter():
 
 
 def alpha_leaf():
-    material, tree, out = node_material("Leaf")
+    material, tree, out = C.node_material("Leaf")
     bsdf = tree.nodes.new("ShaderNodeBsdfPrincipled")
     bsdf.inputs["Base Color"].default_value = (0.2, 0.6, 0.1, 1)
     tree.links.new(mapped(tree, checker(tree, 3.0).outputs["Fac"], 0.15, 0.85), bsdf.inputs["Alpha"])
@@ -108,7 +92,7 @@ def alpha_leaf():
 
 
 def ior_floor():
-    material, tree, out = node_material("IOR Floor")
+    material, tree, out = C.node_material("IOR Floor")
     bsdf = tree.nodes.new("ShaderNodeBsdfPrincipled")
     bsdf.distribution = "GGX"
     bsdf.inputs["Base Color"].default_value = (0.3, 0.3, 0.35, 1)
@@ -120,7 +104,7 @@ def ior_floor():
 
 def normal_mapped():
     """Principled (single-scatter GGX) with a tangent-space Normal Map of a checker colour."""
-    material, tree, out = node_material("Normal Mapped")
+    material, tree, out = C.node_material("Normal Mapped")
     bsdf = tree.nodes.new("ShaderNodeBsdfPrincipled")
     bsdf.distribution = "GGX"
     bsdf.inputs["Base Color"].default_value = (0.6, 0.5, 0.4, 1)
@@ -136,7 +120,7 @@ def normal_mapped():
 
 def bumped(name, after_normal_map=False):
     """Principled (single-scatter GGX) whose Normal is a Bump of a Noise height."""
-    material, tree, out = node_material(name)
+    material, tree, out = C.node_material(name)
     n, link = tree.nodes.new, tree.links.new
     bsdf = n("ShaderNodeBsdfPrincipled")
     bsdf.distribution = "GGX"
@@ -175,7 +159,8 @@ def emitter_scene():
     H.new_object("Floor", [(-3, -3, 0), (3, -3, 0), (3, 3, 0), (-3, 3, 0)], [(0, 1, 2, 3)], grey)
     H.new_object("Wall", [(-3, 1.5, 0), (3, 1.5, 0), (3, 1.5, 3), (-3, 1.5, 3)], [(0, 1, 2, 3)], grey)
     # A vertical panel facing +x, near the wall: its checker lights the wall and the floor.
-    uv_quad("Emitter", [(-1, -0.5, 0.2), (-1, 1.4, 0.2), (-1, 1.4, 1.8), (-1, -0.5, 1.8)], checker_emitter())
+    H.uv_quad("Emitter", [(-1, -0.5, 0.2), (-1, 1.4, 0.2), (-1, 1.4, 1.8), (-1, -0.5, 1.8)],
+              checker_emitter())
     C.add_camera(scene, (2.5, -3.5, 1.5), (83.5, 0.0, 35.0), lens=30.0)
     return render(scene, "emitter")
 
@@ -183,8 +168,8 @@ def emitter_scene():
 def leaf_scene():
     scene = C.clear_scene()
     H.world_color(scene, (0.3, 0.35, 0.4), 1.0)
-    uv_quad("Floor", [(-3, -3, 0), (3, -3, 0), (3, 3, 0), (-3, 3, 0)], ior_floor())
-    uv_quad("Leaf", [(-1, -1, 0.8), (1, -1, 0.8), (1, 1, 0.8), (-1, 1, 0.8)], alpha_leaf())
+    H.uv_quad("Floor", [(-3, -3, 0), (3, -3, 0), (3, 3, 0), (-3, 3, 0)], ior_floor())
+    H.uv_quad("Leaf", [(-1, -1, 0.8), (1, -1, 0.8), (1, 1, 0.8), (-1, 1, 0.8)], alpha_leaf())
     H.add_light("SUN", "Sun", (0.0, 0.0, 5.0), (40.0, 0.0, -60.0), energy=3.0, angle=math.radians(4.0))
     C.add_camera(scene, (0.0, -2.6, 2.6), (55.0, 0.0, 0.0), lens=30.0)
     return render(scene, "leaf")
@@ -199,9 +184,9 @@ def normal_map_scene():
     scene = C.clear_scene()
     H.world_color(scene, (0.4, 0.45, 0.5), 1.0)
     material = normal_mapped()
-    turned = uv_quad("Turned", [(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)], material)
+    turned = H.uv_quad("Turned", [(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)], material)
     turned.location, turned.rotation_euler = (-1.3, 0.0, 0.0), (0.0, 0.0, math.radians(30.0))
-    mirrored = uv_quad("Mirrored", [(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)], material)
+    mirrored = H.uv_quad("Mirrored", [(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)], material)
     mirrored.location, mirrored.scale = (1.1, 0.0, 0.0), (-1.0, 1.0, 1.0)
     H.add_light("SUN", "Sun", (0.0, 0.0, 5.0), (35.0, 0.0, 60.0), energy=3.0, angle=math.radians(4.0))
     C.add_camera(scene, (0.0, -3.0, 2.4), (51.0, 0.0, 0.0), lens=26.0)
@@ -211,8 +196,8 @@ def normal_map_scene():
 def bump_scene():
     scene = C.clear_scene()
     H.world_color(scene, (0.4, 0.45, 0.5), 1.0)
-    uv_quad("Bumped", [(-2.1, -1, 0), (-0.1, -1, 0), (-0.1, 1, 0), (-2.1, 1, 0)], bumped("Bumped"))
-    uv_quad("Mapped", [(0.1, -1, 0), (2.1, -1, 0), (2.1, 1, 0), (0.1, 1, 0)], bumped("Mapped", True))
+    H.uv_quad("Bumped", [(-2.1, -1, 0), (-0.1, -1, 0), (-0.1, 1, 0), (-2.1, 1, 0)], bumped("Bumped"))
+    H.uv_quad("Mapped", [(0.1, -1, 0), (2.1, -1, 0), (2.1, 1, 0), (0.1, 1, 0)], bumped("Mapped", True))
     H.add_light("SUN", "Sun", (0.0, 0.0, 5.0), (50.0, 0.0, 60.0), energy=3.0, angle=math.radians(4.0))
     C.add_camera(scene, (0.0, -3.0, 2.4), (51.0, 0.0, 0.0), lens=26.0)
     return render(scene, "bump")
@@ -304,12 +289,7 @@ def main():
 '''
 
 
-@pytest.fixture(scope="module")
-def renders(tmp_path_factory):
-    run = run_blender(SCENE_BODY, tmp_path_factory.mktemp("program_closures"), timeout=1800,
-                      numba_cache=shared_numba_cache())
-    assert run.returncode == 0 and run.result, run.describe()
-    return run.result
+renders = blender_fixture(SCENE_BODY, "program_closures", timeout=1800)
 
 
 def _images(paths: list[str]) -> np.ndarray:

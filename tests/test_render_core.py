@@ -13,9 +13,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from render_helpers import render_film
 
 from examples.scenes import cornell_box, furnace_sphere, icosphere, point_light_plane, quad
+from helpers.films import render_film
 from renderer.film import Film
 from renderer.imageio import read_exr
 from renderer.scene import Camera, IntegratorSettings, Lobe, Material, Mesh, PointLight, Scene

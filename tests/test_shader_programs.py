@@ -25,8 +25,9 @@ import bake_cases_textures
 import numpy as np
 import pytest
 
-from bench.blender import REPO, run_blender, shared_numba_cache
+from bench.blender import REPO, shared_numba_cache
 from bench.comparison import assert_agree, compare_images
+from helpers.blender_runs import blender_fixture
 from renderer.imageio import read_exr
 
 pytestmark = [pytest.mark.bpy, pytest.mark.slow]
@@ -42,7 +43,7 @@ TOLERANCE = 1e-4
 BAKE_BODY = rf'''
 import bpy
 import numpy as np
-import bpy_helpers as H
+from helpers import bpy_helpers as H
 import blender_cornell as C
 import bake_cases_textures as T
 import bake_cases_nodes as N
@@ -387,12 +388,8 @@ CASES = (
 TIGHT_CASES = {name: bake_cases_nodes.TIGHT for name in CASES if name.startswith("ramp_")}
 
 
-@pytest.fixture(scope="module")
-def baked(tmp_path_factory):
-    body = BAKE_BODY.replace("for name in CASES:", f"for name in {CASES!r}:")
-    run = run_blender(body, tmp_path_factory.mktemp("bake"), timeout=1800, numba_cache=shared_numba_cache())
-    assert run.returncode == 0 and run.result, run.describe()
-    return run.result
+baked = blender_fixture(BAKE_BODY.replace("for name in CASES:", f"for name in {CASES!r}:"), "bake",
+                        timeout=1800)
 
 
 @pytest.mark.parametrize("case", CASES)
@@ -412,32 +409,16 @@ SCENE_BODY = rf'''
 import math
 import os
 import bpy
-import bpy_helpers as H
+from helpers import bpy_helpers as H
 import blender_cornell as C
 
 SIZE = {SIZE}
 
 
-def uv_quad(name, vertices, material, scale=1.0):
-    obj = H.new_object(name, vertices, [(0, 1, 2, 3)], material)
-    uv = obj.data.uv_layers.new(name="UVMap")
-    for loop, (u, v) in zip(obj.data.loops, [(0, 0), (1, 0), (1, 1), (0, 1)]):
-        uv.data[loop.index].uv = (u * scale, v * scale)
-    return obj
-
-
-def node_material(name):
-    material = bpy.data.materials.new(name)
-    H.ensure_nodes(material)
-    tree = material.node_tree
-    tree.nodes.clear()
-    return material, tree, tree.nodes.new("ShaderNodeOutputMaterial")
-
-
 def floor_material():
     """Principled: Base Color from a Checker on UVs, Roughness from a Gradient via Map Range,
     Metallic from a coarser Checker."""
-    material, tree, out = node_material("Floor")
+    material, tree, out = C.node_material("Floor")
     n, link = tree.nodes.new, tree.links.new
     bsdf = n("ShaderNodeBsdfPrincipled")
     # Single-scatter GGX: Haze lacks Cycles' multiscatter compensation (issue 14 item 6).
@@ -467,7 +448,7 @@ def floor_material():
 def wall_material():
     """Diffuse of a colour-grid image, mixed with a diffuse of the colour attribute by a ramp
     of a gradient."""
-    material, tree, out = node_material("Wall")
+    material, tree, out = C.node_material("Wall")
     n, link = tree.nodes.new, tree.links.new
     image = bpy.data.images.new("Grid", 64, 64, alpha=False, float_buffer=False)
     image.generated_type = "COLOR_GRID"
@@ -496,8 +477,8 @@ def main():
     H.enable_addon()
     scene = C.clear_scene()
     H.world_color(scene, (0.35, 0.4, 0.45), 1.0)
-    uv_quad("Floor", [(-3, -3, 0), (3, -3, 0), (3, 3, 0), (-3, 3, 0)], floor_material())
-    wall = uv_quad("Wall", [(-3, 1.5, 0), (3, 1.5, 0), (3, 1.5, 3), (-3, 1.5, 3)], wall_material())
+    H.uv_quad("Floor", [(-3, -3, 0), (3, -3, 0), (3, 3, 0), (-3, 3, 0)], floor_material())
+    wall = H.uv_quad("Wall", [(-3, 1.5, 0), (3, 1.5, 0), (3, 1.5, 3), (-3, 1.5, 3)], wall_material())
     colors = wall.data.color_attributes.new("Col", "BYTE_COLOR", "POINT")
     for k, c in enumerate([(0.7, 0.1, 0.1), (0.1, 0.7, 0.1), (0.1, 0.1, 0.7), (0.6, 0.6, 0.2)]):
         colors.data[k].color = (*c, 1.0)
@@ -517,12 +498,7 @@ def main():
 '''
 
 
-@pytest.fixture(scope="module")
-def textured(tmp_path_factory):
-    run = run_blender(SCENE_BODY, tmp_path_factory.mktemp("textured"), timeout=1800,
-                      numba_cache=shared_numba_cache())
-    assert run.returncode == 0 and run.result, run.describe()
-    return run.result
+textured = blender_fixture(SCENE_BODY, "textured", timeout=1800)
 
 
 def test_textured_scene_agrees_with_cycles(textured):

@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 from examples.scenes import cornell_box
+from helpers.films import assert_same_bits
 from renderer.compile import compile_scene
 from renderer.film import Film
 from renderer.integrator.wavefront import Tracer
@@ -55,11 +56,6 @@ def test_a_4k_frame_is_cut_into_64_bands_of_about_unit_paths_pixels():
     assert tile_rows(362, 362, UNIT_PATHS) == 362  # 131044 pixels: one tile
     assert tile_rows(400, 400, UNIT_PATHS) == 200  # two even bands, not 327 + 73 rows
     assert units[65].describe() == "samples 1..1 of rows 34..67"  # in messages about a unit
-
-
-def assert_same_bits(a: Film, b: Film) -> None:
-    for name in ("n", "sum", "sq", "alpha", "aov"):
-        assert np.array_equal(getattr(a, name), getattr(b, name)), name
 
 
 def passes_and_tiles(scene: Scene, spp: int, unit_paths: int) -> tuple[Film, Film]:

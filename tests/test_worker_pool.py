@@ -19,6 +19,7 @@ import pytest
 
 from examples.media_scenes import grid_medium, with_grid_medium
 from examples.scenes import cornell_box
+from helpers.films import assert_same_bits
 from renderer import render as render_module
 from renderer import units as units_module
 from renderer.compile import compile_scene
@@ -32,12 +33,6 @@ from renderer.units import UNIT_PATHS, plan_units
 
 def frames(scene: Scene, **options) -> list[Progress]:
     return list(render_progressive(scene, **options))
-
-
-def assert_same_bits(a: Film, b: Film) -> None:
-    assert np.array_equal(a.n, b.n)
-    assert np.array_equal(a.sum, b.sum)
-    assert np.array_equal(a.sq, b.sq)
 
 
 def lone_dense_voxel(size: int = 24, spp: int = 4) -> Scene:

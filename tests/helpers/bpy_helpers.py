@@ -18,8 +18,6 @@ import math
 import os
 from pathlib import Path
 
-REPO = Path(__file__).resolve().parents[1]
-
 ADDON_MODE_ENV = "HAZE_TEST_ADDON"  # bench.blender.ADDON_MODE_ENV (not imported: Blender side)
 EXTENSION_PACKAGE = "bl_ext.user_default.haze"  # bench.installed.PACKAGE (not imported: Blender side)
 
@@ -159,6 +157,16 @@ def new_object(name: str, vertices, faces, material=None):
     return obj
 
 
+def uv_quad(name: str, vertices, material, scale: float = 1.0):
+    """A quad (vertices in order around it) with a UV map "UVMap" from (0, 0) at the first
+    vertex to (scale, scale) at the third."""
+    obj = new_object(name, vertices, [(0, 1, 2, 3)], material)
+    uv = obj.data.uv_layers.new(name="UVMap")
+    for loop, (u, v) in zip(obj.data.loops, [(0, 0), (1, 0), (1, 1), (0, 1)], strict=True):
+        uv.data[loop.index].uv = (u * scale, v * scale)
+    return obj
+
+
 def uv_sphere(name: str, center, radius: float, material, rings: int = 24, segments: int = 48):
     """A closed, smooth-shaded UV sphere with outward normals."""
     vertices = [(center[0], center[1], center[2] + radius)]
@@ -185,6 +193,46 @@ def uv_sphere(name: str, center, radius: float, material, rings: int = 24, segme
 def floor_plane(name: str, half: float, material, z: float = 0.0):
     return new_object(name, [(-half, -half, z), (half, -half, z), (half, half, z), (-half, half, z)],
                       [(0, 1, 2, 3)], material)
+
+
+def gas_domain(scene, scale, cache_directory: str, resolution: int, location=(0.0, 0.0, 0.0)):
+    """A fluid domain "Domain" linked to `scene`: the box from (-1, -1, 0) to (1, 1, 2) in
+    object space, scaled and placed, whose Fluid modifier reads a modular cache in
+    `cache_directory` that the test writes (nothing is simulated; the viewport depsgraph
+    never runs the modifier). Returns (object, mesh, domain settings)."""
+    import bpy
+
+    mesh = bpy.data.meshes.new("Domain")
+    corners = [(x, y, z) for x in (-1, 1) for y in (-1, 1) for z in (0, 2)]
+    mesh.from_pydata(corners, [], [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4),
+                                   (1, 5, 7, 3)])
+    domain = bpy.data.objects.new("Domain", mesh)
+    scene.collection.objects.link(domain)
+    domain.scale = scale
+    domain.location = location
+    modifier = domain.modifiers.new("Fluid", "FLUID")
+    modifier.show_viewport = False
+    modifier.fluid_type = "DOMAIN"
+    settings = modifier.domain_settings
+    settings.cache_directory = cache_directory
+    settings.cache_type = "MODULAR"
+    settings.resolution_max = resolution
+    return domain, mesh, settings
+
+
+def fire_grids():
+    """The density and flame, (nz, ny, nx) = (16, 11, 11), of a fire in a 2 x 2 x 3 gas domain
+    at resolution 16 (gas_domain scaled (1, 1, 1.5)), that the tests write as its cache
+    frame: random lumps (seed 5), flame inside the density."""
+    import numpy as np
+
+    rng = np.random.default_rng(5)
+    shape = (16, 11, 11)
+    density = np.zeros(shape, np.float32)
+    density[3:12, 2:9, 3:8] = rng.random((9, 7, 5)).astype(np.float32) + 0.05
+    flame = np.zeros(shape, np.float32)
+    flame[4:8, 3:7, 4:7] = rng.random((4, 4, 3)).astype(np.float32)
+    return density, flame
 
 
 def ensure_nodes(datablock) -> None:

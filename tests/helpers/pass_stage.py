@@ -3,8 +3,10 @@ test_addon_light_passes.py), in three parts:
 
 * Blender side (imported by their Blender scripts; bpy is imported inside the functions, so
   pytest can import this module without Blender): `build_stage` (floor, wall, fog cube, sun,
-  sky and camera, and the two balls), `write_multilayer`.
-* Host side: `read_passes` of the multilayer EXRs they write.
+  sky and camera, and the two balls), `write_multilayer`, `render_runs` (the renders by
+  Cycles and by Haze the tests compare).
+* Host side: `read_passes` of the multilayer EXRs they write, `read_runs` (a fixture's
+  `read`: every EXR of a run's result).
 * The stage's analytic geometry seen by its camera: which pixels see the fog cube's
   silhouette or the glass ball, and the exact mean transmittance through the fog cube of
   every pixel (numpy only, no renderer).
@@ -16,6 +18,7 @@ horizontally, box pixel filter of width 1. Row 0 of every image is the top row.
 from __future__ import annotations
 
 import math
+import os
 from pathlib import Path
 
 import numpy as np
@@ -35,7 +38,8 @@ def build_stage(size: tuple[int, int], balls: bool = True):
     floor: a face coplanar with the floor would make the order of the two hits arbitrary),
     the sun and the camera; with `balls`, a diffuse ball and the clear glass ball too."""
     import blender_cornell as C
-    import bpy_helpers as H
+
+    from helpers import bpy_helpers as H
 
     scene = C.clear_scene()
     scene.render.use_compositing = False
@@ -70,6 +74,27 @@ def write_multilayer(scene, path: str) -> str:
     scene.render.filepath = path
     bpy.ops.render.render(write_still=True)
     return path
+
+
+def render_runs(scene, runs: int, samples: int, max_bounces: int = 3) -> dict[str, list[str]]:
+    """Blender side: `runs` renders of `scene` by Cycles and as many by Haze (seeds 1 .. runs,
+    `samples` each), multilayer EXRs in the working folder: {"cycles": paths, "haze": paths}."""
+    from helpers import bpy_helpers as H
+
+    out: dict[str, list[str]] = {"cycles": [], "haze": []}
+    for run in range(runs):
+        H.configure_cycles(scene, samples, max_bounces, seed=run + 1)
+        out["cycles"].append(write_multilayer(scene, os.path.join(os.getcwd(), f"cycles_{run}.exr")))
+        H.configure_haze(scene, samples, max_bounces, seed=run + 1)
+        out["haze"].append(write_multilayer(scene, os.path.join(os.getcwd(), f"haze_{run}.exr")))
+    return out
+
+
+def read_runs(run, folder: Path) -> dict:
+    """Host side (a blender_fixture's `read`): the run's result with each EXR path, alone or
+    in a list, replaced by its passes (read_passes)."""
+    return {key: [read_passes(p) for p in value] if isinstance(value, list) else read_passes(value)
+            for key, value in run.result.items()}
 
 
 def read_passes(path: str | Path) -> dict[str, np.ndarray]:
