@@ -16,6 +16,7 @@ import os
 import re
 import tempfile
 import typing
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -85,12 +86,16 @@ def save_scene(scene: Scene, folder: str | Path, generator: str | None = None) -
     """
     validate_scene(scene)
     folder = Path(folder)
-    (folder / ARRAY_DIR).mkdir(parents=True, exist_ok=True)
     header: dict[str, Any] = {"version": SCENE_FORMAT_VERSION}
     if generator is not None:
         header[GENERATOR_KEY] = generator
-    data = {**header, **_encode(scene, "", _Place(), _ArrayWriter(folder))}
-    return _write_text_atomically(folder / SCENE_FILE, _to_readable_json(data))
+    # Everything is named and checked before the first file is written: a refused scene
+    # leaves the folder as it was.
+    arrays = _ArrayWriter(folder)
+    text = _to_readable_json({**header, **_encode(scene, "", _Place(), arrays)})
+    (folder / ARRAY_DIR).mkdir(parents=True, exist_ok=True)
+    arrays.write_all()
+    return _write_text_atomically(folder / SCENE_FILE, text)
 
 
 def load_scene(folder: str | Path) -> Scene:
@@ -362,7 +367,7 @@ def _encode(value: Any, field_name: str, place: _Place, write_array: _ArrayWrite
     from renderer.media.bricks import SparseGrid  # lazily: renderer.media imports the scene modules
 
     if isinstance(value, SparseGrid):  # the format holds dense grids: written out in full
-        return write_array(value.to_dense(), place)
+        return write_array(value.to_dense, place)  # made dense when written, one at a time
     if dataclasses.is_dataclass(value):
         fields = dataclasses.fields(value)
         encoded = {f.name: _encode(getattr(value, f.name), f.name, place.field(f.name), write_array)
@@ -373,9 +378,14 @@ def _encode(value: Any, field_name: str, place: _Place, write_array: _ArrayWrite
     if isinstance(value, np.ndarray) and field_name in MATRIX_FIELDS:
         return value.tolist()
     if isinstance(value, np.ndarray):
-        return write_array(value, place)
+        return write_array(lambda: value, place)
     if isinstance(value, tuple):
         return list(value)
+    if isinstance(value, str):
+        # A lone surrogate (possible in a Python str, never in Blender's UTF-8 names) cannot
+        # be written as UTF-8: say which field, rather than fail halfway through the write.
+        unicode = not any("\ud800" <= char <= "\udfff" for char in value)
+        require(unicode, place.path, "is not valid Unicode text (it holds a lone surrogate)")
     return value
 
 
@@ -385,13 +395,19 @@ def _type_first(encoded: dict) -> dict:
 
 
 class _ArrayWriter:
-    """Writes a scene's arrays into folder/arrays, each to its own file, or refuses."""
+    """Names a scene's arrays, each its own file in folder/arrays (or refuses), and then
+    writes them all."""
 
     def __init__(self, folder: Path) -> None:
         self.folder = folder
         self.written: dict[str, str] = {}  # case-folded file name -> the field written there
+        self.pending: list[tuple[Path, Callable[[], np.ndarray]]] = []
 
-    def __call__(self, array: np.ndarray, place: _Place) -> str:
+    def write_all(self) -> None:
+        for file, array in self.pending:
+            _write_array_atomically(file, array())
+
+    def __call__(self, array: Callable[[], np.ndarray], place: _Place) -> str:
         stem = ".".join(place.stem)
         # Both hold by construction (_Place); checked because a lost array is silent.
         require(_ARRAY_STEM.fullmatch(stem) is not None, place.path, f"no safe file name from {stem!r}")
@@ -399,7 +415,7 @@ class _ArrayWriter:
         earlier = self.written.get(relative.casefold())
         require(earlier is None, place.path, f"would be written to {relative}, the file of {earlier}")
         self.written[relative.casefold()] = place.path
-        _write_array_atomically(self.folder / relative, array)
+        self.pending.append((self.folder / relative, array))
         return relative
 
 

@@ -270,6 +270,7 @@ def test_save_refuses_to_write_two_fields_to_one_file(tmp_path: Path, monkeypatc
     with pytest.raises(SceneError, match=r"^materials\[1\]\.program\.code: would be written to "
                                          r"arrays/materials\.program\.code\.npy, the file of materials\[0\]"):
         save_scene(every_field_scene(), tmp_path)
+    assert list(tmp_path.iterdir()) == []  # refused before anything was written
 
 
 def test_a_sparse_grid_is_saved_dense(tmp_path: Path) -> None:
@@ -447,3 +448,11 @@ def test_the_format_doc_lists_every_array_field() -> None:
         generic = re.sub(r"\[\d+\]", "[j]", generic)
         generic = re.sub(r"(media\[i\]\.program)\.\w+", r"\1.*", generic)
         assert f"| `{generic}` |" in text, field
+
+
+def test_a_name_that_is_not_unicode_is_refused_before_anything_is_written(tmp_path: Path) -> None:
+    scene = every_field_scene()
+    scene.images[1].name = scene.materials[1].program.images[0] = "bad \ud800 name"
+    with pytest.raises(SceneError, match=r"^materials\[1\]\.program\.images\[0\]: is not valid Unicode"):
+        save_scene(scene, tmp_path)
+    assert list(tmp_path.iterdir()) == []
