@@ -389,7 +389,7 @@ def scenes(draw) -> Scene:
     )
 
 
-@settings(max_examples=60, deadline=None, derandomize=True,
+@settings(max_examples=60, deadline=None, derandomize=True, database=None,
           suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
 @given(scene=scenes())
 def test_generated_scenes_round_trip_exactly(tmp_path_factory, scene: Scene) -> None:
