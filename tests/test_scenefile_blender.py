@@ -16,7 +16,8 @@ import sys
 import numpy as np
 import pytest
 
-from bench.blender import REPO, run_blender, shared_numba_cache
+from bench.blender import REPO, shared_numba_cache
+from helpers.blender_runs import blender_fixture
 from renderer.imageio import read_exr
 from renderer.scenefile import load_scene
 
@@ -29,7 +30,7 @@ import math
 import os
 import bpy
 import numpy as np
-import bpy_helpers as H
+from helpers import bpy_helpers as H
 import blender_cornell as C
 
 
@@ -84,12 +85,7 @@ def main():
 '''
 
 
-@pytest.fixture(scope="module")
-def exported(tmp_path_factory):
-    folder = tmp_path_factory.mktemp("uv_meshes")
-    run = run_blender(BODY, folder, timeout=1800, numba_cache=shared_numba_cache())
-    assert run.returncode == 0 and run.result, run.describe()
-    return run.result
+exported = blender_fixture(BODY, "uv_meshes", timeout=1800)
 
 
 def test_the_export_keeps_each_meshes_uvs_and_image(exported):
