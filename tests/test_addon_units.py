@@ -23,8 +23,11 @@ from addon.export.node_closures import (
     merge_sides,
     scale_terms,
 )
-from addon.export.node_values import safe_power
+from addon.export.node_values import value_map_range, value_math
 from renderer.scene import Lobe
+from renderer.shading.math_arrays import math_array
+from renderer.shading.math_ops import math_op
+from renderer.shading.names import MATH_OPS
 
 CUBE = np.array([[0, 1, 3], [0, 3, 2], [4, 6, 7], [4, 7, 5], [0, 4, 5], [0, 5, 1],
                  [2, 3, 7], [2, 7, 6], [0, 2, 6], [0, 6, 4], [1, 5, 7], [1, 7, 3]], np.int32)
@@ -86,8 +89,54 @@ def test_physical_conductor_as_f82_curve():
 
 
 def test_safe_power_follows_cycles():
-    result = safe_power(np.array([-8.0, -8.0, 4.0]), np.array([1.0 / 3.0, 3.0, 0.5]))
-    assert result.tolist() == [0.0, -512.0, 2.0]
+    bases, exponents = np.array([-8.0, -8.0, 4.0]), np.array([1.0 / 3.0, 3.0, 0.5])
+    assert math_array(MATH_OPS.index("POWER"), bases, exponents, 0.0).tolist() == [0.0, -512.0, 2.0]
+
+
+class ConstantInputs:
+    """A value graph whose node inputs (sockets named by strings here) are given arrays."""
+
+    def __init__(self, **values: np.ndarray) -> None:
+        self.values = values
+
+    def input_value(self, socket, scope: tuple = ()) -> np.ndarray:
+        return self.values[socket]
+
+
+def fold_math(name: str, a, b, c) -> np.ndarray:
+    node = SimpleNamespace(operation=name, use_clamp=False, inputs=("a", "b", "c"))
+    return value_math(ConstantInputs(a=a, b=b, c=c), node, None, ())
+
+
+def test_math_nodes_fold_to_the_bits_the_kernels_compute():
+    """Export-time folding runs the kernels' own math_op: every Math operation, on inputs of
+    both signs and of every magnitude (past int64 too), folds to the float64 the kernel's
+    scalar function gives (non-finite results folded to 0, as the exporter does)."""
+    values = np.array([-1e20, -7.25, -2.5, -1.0, -0.3, -0.0, 0.0, 1e-8, 0.5, 1.0, 2.0, 3.0, 100.0, 1e20])
+    a, b, c = (x.reshape(-1, 1) for x in np.meshgrid(values, values, [0.0, 0.25, 3.0], indexing="ij"))
+    for op, name in enumerate(MATH_OPS):
+        kernel = [math_op(op, x, y, z) for x, y, z in zip(a[:, 0], b[:, 0], c[:, 0], strict=True)]
+        kernel = np.nan_to_num(kernel, nan=0.0, posinf=0.0, neginf=0.0)
+        folded = fold_math(name, a, b, c)
+        assert folded.shape == a.shape and folded[:, 0].tobytes() == kernel.tobytes(), name
+
+
+def test_folded_nodes_follow_cycles_where_the_numpy_folding_did_not():
+    """Cycles' semantics the exporter's own numpy maths missed: Compare within max(c,
+    FLT_EPSILON), not 1e-5; Floor past int64; Ping-Pong, Wrap, Snap and Smooth Minimum folded,
+    not passed through; a Map Range whose From range is empty gives 0, not To Min."""
+    def fold(name: str, a: float, b: float = 0.0, c: float = 0.0) -> float:
+        return float(fold_math(name, *(np.array([[x]]) for x in (a, b, c)))[0, 0])
+
+    assert fold("COMPARE", 1.0, 1.0 + 5e-6) == 0.0 and fold("COMPARE", 1.0, 1.0 + 5e-8) == 1.0
+    assert fold("FLOOR", 1e20) == 1e20 and fold("FLOOR", -2.5) == -3.0
+    assert fold("PINGPONG", 2.5, 1.0) == 0.5 and fold("WRAP", 5.5, 2.0, 1.0) == 1.5
+    assert fold("SNAP", 7.3, 2.0) == 6.0 and fold("SMOOTH_MIN", 1.0, 1.0, 1.0) == pytest.approx(5.0 / 6.0)
+    node = SimpleNamespace(data_type="FLOAT", interpolation_type="LINEAR", clamp=True, inputs=tuple("vabcds"))
+    inputs = {name: np.array([[x]]) for name, x in zip("vabcds", (0.5, 1.0, 1.0, 2.0, 3.0, 4.0), strict=True)}
+    assert value_map_range(ConstantInputs(**inputs), node, None, ()).tolist() == [[0.0]]
+    inputs["b"] = np.array([[3.0]])  # From 1 .. 3: 0.5 maps below To Min and clamps to it
+    assert value_map_range(ConstantInputs(**inputs), node, None, ()).tolist() == [[2.0]]
 
 
 def test_closed_and_open_meshes():

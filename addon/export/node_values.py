@@ -17,6 +17,8 @@ from typing import Protocol
 import numpy as np
 
 from renderer.scene import LUMINANCE  # Rec. 709 (Blender's linear space): implicit colour-to-float
+from renderer.shading.math_arrays import map_range_array, math_array, mix_array
+from renderer.shading.names import BLEND_TYPES, MAP_RANGE_TYPES, MATH_OPS
 
 FRONT, BACK = 0, 1  # rows of a sided value
 SIDE_NAMES = ("front", "back")
@@ -68,84 +70,9 @@ def convert(value: np.ndarray, from_type: str, to_type: str) -> np.ndarray:
     return value.mean(axis=1, keepdims=True)
 
 
-# ---------------------------------------------------------------------------- Cycles' safe maths
-
-
-def safe_divide(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    with np.errstate(divide="ignore", invalid="ignore"):
-        return np.where(b != 0.0, a / np.where(b != 0.0, b, 1.0), 0.0)
-
-
-def safe_power(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    # Cycles' safe_powf: negative bases only with integer exponents, else 0.
-    integer = b == np.round(b)
-    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
-        result = np.where((a >= 0.0) | integer, np.power(np.abs(a), b) * np.where(
-            (a < 0.0) & (np.mod(b, 2.0) == 1.0), -1.0, 1.0), 0.0)
-    return np.nan_to_num(result, nan=0.0, posinf=0.0, neginf=0.0)
-
-
-def safe_log(a: np.ndarray, base: np.ndarray) -> np.ndarray:
-    with np.errstate(invalid="ignore", divide="ignore"):
-        result = np.where((a > 0.0) & (base > 0.0) & (base != 1.0), np.log(np.abs(a)) / np.log(
-            np.where((base > 0.0) & (base != 1.0), base, 2.0)), 0.0)
-    return result
-
-
-MATH_OPERATIONS: dict[str, Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray]] = {
-    "ADD": lambda a, b, c: a + b,
-    "SUBTRACT": lambda a, b, c: a - b,
-    "MULTIPLY": lambda a, b, c: a * b,
-    "DIVIDE": lambda a, b, c: safe_divide(a, b),
-    "MULTIPLY_ADD": lambda a, b, c: a * b + c,
-    "POWER": lambda a, b, c: safe_power(a, b),
-    "LOGARITHM": lambda a, b, c: safe_log(a, b),
-    "SQRT": lambda a, b, c: np.sqrt(np.maximum(a, 0.0)),
-    "INVERSE_SQRT": lambda a, b, c: safe_divide(np.ones_like(a), np.sqrt(np.maximum(a, 0.0))),
-    "ABSOLUTE": lambda a, b, c: np.abs(a),
-    "EXPONENT": lambda a, b, c: np.exp(a),
-    "MINIMUM": lambda a, b, c: np.minimum(a, b),
-    "MAXIMUM": lambda a, b, c: np.maximum(a, b),
-    "LESS_THAN": lambda a, b, c: (a < b).astype(np.float64),
-    "GREATER_THAN": lambda a, b, c: (a > b).astype(np.float64),
-    "SIGN": lambda a, b, c: np.sign(a),
-    "COMPARE": lambda a, b, c: (np.abs(a - b) <= np.maximum(c, 1e-5)).astype(np.float64),
-    "ROUND": lambda a, b, c: np.floor(a + 0.5),
-    "FLOOR": lambda a, b, c: np.floor(a),
-    "CEIL": lambda a, b, c: np.ceil(a),
-    "TRUNC": lambda a, b, c: np.trunc(a),
-    "FRACT": lambda a, b, c: a - np.floor(a),
-    "MODULO": lambda a, b, c: np.where(b != 0.0, np.fmod(a, np.where(b != 0.0, b, 1.0)), 0.0),
-    "FLOORED_MODULO": lambda a, b, c: np.where(b != 0.0, a - np.floor(safe_divide(a, b)) * b, 0.0),
-    "SINE": lambda a, b, c: np.sin(a),
-    "COSINE": lambda a, b, c: np.cos(a),
-    "TANGENT": lambda a, b, c: np.tan(a),
-    "ARCSINE": lambda a, b, c: np.arcsin(np.clip(a, -1.0, 1.0)),
-    "ARCCOSINE": lambda a, b, c: np.arccos(np.clip(a, -1.0, 1.0)),
-    "ARCTANGENT": lambda a, b, c: np.arctan(a),
-    "ARCTAN2": lambda a, b, c: np.arctan2(a, b),
-    "SINH": lambda a, b, c: np.sinh(a),
-    "COSH": lambda a, b, c: np.cosh(a),
-    "TANH": lambda a, b, c: np.tanh(a),
-    "RADIANS": lambda a, b, c: np.radians(a),
-    "DEGREES": lambda a, b, c: np.degrees(a),
-}
-
-COLOR_BLENDS: dict[str, Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray]] = {
-    "MIX": lambda t, a, b: a + t * (b - a),
-    "ADD": lambda t, a, b: a + t * b,
-    "MULTIPLY": lambda t, a, b: a * (1.0 - t + t * b),
-    "SUBTRACT": lambda t, a, b: a - t * b,
-    "SCREEN": lambda t, a, b: 1.0 - (1.0 - t + t * (1.0 - b)) * (1.0 - a),
-    "DIVIDE": lambda t, a, b: np.where(b != 0.0, (1.0 - t) * a + t * safe_divide(a, b), a),
-    "DIFFERENCE": lambda t, a, b: a + t * (np.abs(a - b) - a),
-    "DARKEN": lambda t, a, b: a + t * (np.minimum(a, b) - a),
-    "LIGHTEN": lambda t, a, b: a + t * (np.maximum(a, b) - a),
-}
-
-
-
 # ---------------------------------------------------------------------------- value nodes
+# Math, the colour blends and Map Range fold with the kernels' own functions
+# (renderer.shading.math_arrays): one implementation of each of Cycles' semantics.
 
 
 def value_passthrough_input(graph: ValueGraph, node, socket, scope: tuple) -> np.ndarray:
@@ -185,22 +112,22 @@ def value_geometry(graph: ValueGraph, node, socket, scope: tuple) -> np.ndarray 
 
 def value_math(graph: ValueGraph, node, socket, scope: tuple) -> np.ndarray:
     a, b, c = (graph.input_value(s, scope) for s in node.inputs[:3])
-    operation = MATH_OPERATIONS.get(node.operation)
-    if operation is None:
+    if node.operation not in MATH_OPS:
         graph.warn_node(node, f"Math operation {node.operation} is not supported; its first input is used")
         result = a
     else:
         with np.errstate(all="ignore"):
-            result = np.nan_to_num(operation(a, b, c), nan=0.0, posinf=0.0, neginf=0.0)
+            result = math_array(MATH_OPS.index(node.operation), a, b, c)
+        result = np.nan_to_num(result, nan=0.0, posinf=0.0, neginf=0.0)
     return np.clip(result, 0.0, 1.0) if node.use_clamp else result
 
 
 def blend(graph: ValueGraph, node, blend_type: str, t, a, b) -> np.ndarray:
-    operation = COLOR_BLENDS.get(blend_type)
-    if operation is None:
+    if blend_type not in BLEND_TYPES:
         graph.warn_node(node, f"blend mode {blend_type} is not supported; MIX is used")
-        operation = COLOR_BLENDS["MIX"]
-    return operation(t, a, b)
+        blend_type = "MIX"
+    with np.errstate(all="ignore"):
+        return mix_array(BLEND_TYPES.index(blend_type), t, a, b)
 
 
 def by_identifier(sockets, identifier: str):
@@ -253,15 +180,15 @@ def value_clamp(graph: ValueGraph, node, socket, scope: tuple) -> np.ndarray:
 
 
 def value_map_range(graph: ValueGraph, node, socket, scope: tuple) -> np.ndarray | None:
-    if node.data_type != "FLOAT" or node.interpolation_type != "LINEAR":
-        graph.warn_node(node, "only linear float Map Range is supported; the inputs it feeds use "
-                              "their own values")
+    if node.data_type != "FLOAT":
+        graph.warn_node(node, "only float Map Range is supported; the inputs it feeds use their own values")
         return None
-    v, a, b, c, d = (graph.input_value(node.inputs[n], scope)
-                     for n in ("Value", "From Min", "From Max", "To Min", "To Max"))
-    t = safe_divide(v - a, b - a)
-    result = c + t * (d - c)
-    return np.clip(result, np.minimum(c, d), np.maximum(c, d)) if node.clamp else result
+    # Value, From Min, From Max, To Min, To Max, Steps (by index: the vector variants share the names)
+    v, a, b, c, d, steps = (graph.input_value(node.inputs[k], scope) for k in range(6))
+    with np.errstate(all="ignore"):
+        kind = MAP_RANGE_TYPES.index(node.interpolation_type)
+        result = map_range_array(kind, node.clamp, v, a, b, c, d, steps)
+    return np.nan_to_num(result, nan=0.0, posinf=0.0, neginf=0.0)
 
 
 def value_combine(graph: ValueGraph, node, socket, scope: tuple) -> np.ndarray | None:
@@ -291,7 +218,10 @@ def value_rgb_to_bw(graph: ValueGraph, node, socket, scope: tuple) -> np.ndarray
 def value_gamma(graph: ValueGraph, node, socket, scope: tuple) -> np.ndarray:
     color = graph.input_value(node.inputs["Color"], scope)
     gamma = graph.input_value(node.inputs["Gamma"], scope)
-    return np.where(color > 0.0, safe_power(color, gamma), color)
+    with np.errstate(all="ignore"):
+        power = np.nan_to_num(math_array(MATH_OPS.index("POWER"), color, gamma, 0.0), nan=0.0, posinf=0.0,
+                              neginf=0.0)
+    return np.where(color > 0.0, power, color)
 
 
 VALUE_HANDLERS: dict[str, ValueHandler] = {

@@ -9,8 +9,6 @@ corner attributes are interpolated with the barycentrics Embree returns
 (hit = b0 v0 + b1 v1 + b2 v2).
 """
 
-import math
-
 import numpy as np
 
 from renderer.kernels import helper_kernel, inline_kernel
@@ -20,7 +18,7 @@ from .bump import bump_normal, bump_point
 from .color import fresnel, hsl_to_rgb, hsv_to_rgb, hue_saturation_value, layer_weight, rgb_to_hsl, rgb_to_hsv
 from .fractal import noise_texture
 from .image import image_lookup
-from .math_ops import math_op, mix_color, vector_op
+from .math_ops import map_range, math_op, mix_color, vector_op
 from .normals import normal_map
 from .patterns import brick, magic, wave
 from .program import (
@@ -218,8 +216,8 @@ def run_program(st, m, regs, p, b0, b1, b2, x, n, wi, back):  # noqa: C901 - the
         elif op == SPECTRUM:
             spectrum_node(regs, dst, ins[I_P0], float(regs[a]), b)
         elif op == MAP_RANGE:
-            regs[dst] = _map_range(float(regs[a]), float(regs[b]), float(regs[b + 1]), float(regs[b + 2]),
-                                   float(regs[b + 3]), float(regs[b + 4]), ins[I_P0], ins[I_P1] != 0)
+            regs[dst] = map_range(float(regs[a]), float(regs[b]), float(regs[b + 1]), float(regs[b + 2]),
+                                  float(regs[b + 3]), float(regs[b + 4]), ins[I_P0], ins[I_P1] != 0)
 
 
 def program_entry(st: tuple, regs: np.ndarray) -> int:
@@ -288,36 +286,3 @@ def _convert_color(kind, c):
     if kind == 1:
         return hsv_to_rgb(c)
     return rgb_to_hsl(c) if kind == 2 else hsl_to_rgb(c)
-
-
-@inline_kernel
-def _smoothstep(lo, hi, x, smoother):
-    if x < lo:
-        return 0.0
-    if x >= hi:
-        return 1.0
-    t = (x - lo) / (hi - lo)
-    return t * t * t * (t * (t * 6.0 - 15.0) + 10.0) if smoother else (3.0 - 2.0 * t) * t * t
-
-
-@inline_kernel
-def _map_range(v, from_min, from_max, to_min, to_max, steps, kind, clamp):
-    """Map Range (float): Linear 0, Stepped 1, Smooth Step 2, Smoother Step 3, as
-    svm_node_map_range; Clamp applies to Linear and Stepped (Blender adds a clamp node)."""
-    if from_max == from_min:
-        return 0.0
-    if kind >= 2:
-        smoother = kind == 3
-        if from_min > from_max:
-            f = 1.0 - _smoothstep(from_max, from_min, v, smoother)
-        else:
-            f = _smoothstep(from_min, from_max, v, smoother)
-        return to_min + f * (to_max - to_min)
-    f = (v - from_min) / (from_max - from_min)
-    if kind == 1:
-        f = math.floor(f * (steps + 1.0)) / steps if steps > 0.0 else 0.0
-    r = to_min + f * (to_max - to_min)
-    if clamp:
-        lo, hi = min(to_min, to_max), max(to_min, to_max)
-        r = min(max(r, lo), hi)
-    return r

@@ -211,7 +211,7 @@ def mapping_interval(kind: int, v, loc, rot, scale):
 
 
 def map_range_value(v: np.ndarray, fmin, fmax, tmin, tmax, steps, kind: int, clamp: bool) -> np.ndarray:
-    """Map Range (float) at v, as interpreter._map_range (numpy, constant parameters)."""
+    """Map Range (float) at v, as math_ops.map_range (numpy, constant parameters)."""
     if fmax == fmin:
         return np.zeros_like(v)
     with np.errstate(all="ignore"):

@@ -1,7 +1,12 @@
-"""Math, Vector Math and Mix (colour) node operations with Cycles' semantics
+"""Math, Vector Math, Map Range and Mix (colour) node operations with Cycles' semantics
 (kernel/svm/math_util.h, color_util.h): the safe variants, so any input gives a finite
 result where Cycles' does. Operation codes are indexes into the name tuples, which are
-Blender's enum identifiers (the exporter maps node.operation / node.blend_type through them)."""
+Blender's enum identifiers (the exporter maps node.operation / node.blend_type through them).
+
+These scalar functions are the one implementation of the operations: the shader interpreter
+calls them, and the exporter folds constant nodes with them too (math_arrays.py: the same
+functions as numpy ufuncs). Their floors are `floor` and `ceil` here, not math.floor, whose
+int64 result is garbage past 2^63: a folded FLOOR(1e20) stays 1e20."""
 
 import math
 
@@ -31,14 +36,27 @@ def safe_pow(a, b):
 
 
 @inline_kernel
+def floor(a):
+    """numpy's floor, with +0.0 for -0.0: in int64's range the float math.floor gave (the
+    kernels' images stay bit for bit), beyond it the float floor, not a wrapped integer."""
+    return np.floor(a) + 0.0
+
+
+@inline_kernel
+def ceil(a):
+    """numpy's ceil, with +0.0 for -0.0 (see floor)."""
+    return np.ceil(a) + 0.0
+
+
+@inline_kernel
 def fract(a):
-    return a - math.floor(a)
+    return a - floor(a)
 
 
 @inline_kernel
 def wrap(value, hi, lo):
     r = hi - lo
-    return value - r * math.floor((value - lo) / r) if r != 0.0 else lo
+    return value - r * floor((value - lo) / r) if r != 0.0 else lo
 
 
 @inline_kernel
@@ -90,23 +108,23 @@ def math_op(op, a, b, c):  # noqa: C901 - one branch per Math operation, as svm_
     if op == 18:
         return -smooth_min(-a, -b, c)
     if op == 19:
-        return math.floor(a + 0.5)
+        return floor(a + 0.5)
     if op == 20:
-        return math.floor(a)
+        return floor(a)
     if op == 21:
-        return math.ceil(a)
+        return ceil(a)
     if op == 22:
-        return math.floor(a) if a >= 0.0 else math.ceil(a)
+        return floor(a) if a >= 0.0 else ceil(a)
     if op == 23:
         return fract(a)
     if op == 24:
         return np.fmod(a, b) if b != 0.0 else 0.0
     if op == 25:
-        return a - math.floor(a / b) * b if b != 0.0 else 0.0
+        return a - floor(a / b) * b if b != 0.0 else 0.0
     if op == 26:
         return wrap(a, b, c)
     if op == 27:
-        return math.floor(safe_divide(a, b)) * b
+        return floor(safe_divide(a, b)) * b
     if op == 28:
         return abs(fract((a - b) / (b * 2.0)) * b * 2.0 - b) if b != 0.0 else 0.0
     if op == 29:
@@ -216,12 +234,45 @@ def vector_op(op, a, b, c, s):  # noqa: C901 - one branch per operation, as svm_
 
 
 @inline_kernel
+def smoothstep(lo, hi, x, smoother):
+    if x < lo:
+        return 0.0
+    if x >= hi:
+        return 1.0
+    t = (x - lo) / (hi - lo)
+    return t * t * t * (t * (t * 6.0 - 15.0) + 10.0) if smoother else (3.0 - 2.0 * t) * t * t
+
+
+@inline_kernel
+def map_range(v, from_min, from_max, to_min, to_max, steps, kind, clamp):
+    """Map Range (float): Linear 0, Stepped 1, Smooth Step 2, Smoother Step 3, as
+    svm_node_map_range; Clamp applies to Linear and Stepped (Blender adds a clamp node)."""
+    if from_max == from_min:
+        return 0.0
+    if kind >= 2:
+        smoother = kind == 3
+        if from_min > from_max:
+            f = 1.0 - smoothstep(from_max, from_min, v, smoother)
+        else:
+            f = smoothstep(from_min, from_max, v, smoother)
+        return to_min + f * (to_max - to_min)
+    f = (v - from_min) / (from_max - from_min)
+    if kind == 1:
+        f = floor(f * (steps + 1.0)) / steps if steps > 0.0 else 0.0
+    r = to_min + f * (to_max - to_min)
+    if clamp:
+        lo, hi = min(to_min, to_max), max(to_min, to_max)
+        r = min(max(r, lo), hi)
+    return r
+
+
+@inline_kernel
 def _lerp(a, b, t):
     return (1.0 - t) * a + t * b
 
 
 @inline_kernel
-def _blend1(blend, t, a, b):  # noqa: C901 - one branch per blend type, as svm_mix
+def mix_channel(blend, t, a, b):  # noqa: C901 - one branch per blend type, as svm_mix
     """One channel of Mix blend `blend` (BLEND_TYPES index) of a and b by t."""
     tm = 1.0 - t
     if blend == 0:
@@ -268,4 +319,5 @@ def _blend1(blend, t, a, b):  # noqa: C901 - one branch per blend type, as svm_m
 
 @inline_kernel
 def mix_color(blend, t, a, b):
-    return (_blend1(blend, t, a[0], b[0]), _blend1(blend, t, a[1], b[1]), _blend1(blend, t, a[2], b[2]))
+    return (mix_channel(blend, t, a[0], b[0]), mix_channel(blend, t, a[1], b[1]),
+            mix_channel(blend, t, a[2], b[2]))
