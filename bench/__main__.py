@@ -21,7 +21,7 @@ COMMANDS = {
     "procedural_tracking": "bench.procedural_tracking",
     "procedural_volume_cycles": "bench.procedural_volume_cycles",
     # developer tools
-    "golden": "bench.golden", "import_cycles": "bench.import_cycles",
+    "golden": "bench.golden", "import_cycles": "bench.import_cycles", "scene_fuzz": "bench.scene_fuzz",
     "cycles_reference": "bench.cycles_reference", "blend_scene": "bench.blend_scene",
 }
 

@@ -41,6 +41,7 @@ from .media.layout import MediaData
 from .scene import MAX_STACK as MAX_STACK  # re-exported: the integrator sizes its stacks with it
 from .scene import PROJECTIONS, SIDES, Scene
 from .shading.table import ShadingTables, build_shading_tables
+from .validate.program import check_shading
 
 
 class Geometry(NamedTuple):
@@ -175,6 +176,9 @@ def _projection(cam, aspect: float) -> np.ndarray:
 
 
 def compile_scene(scene: Scene) -> CompiledScene:
+    # The indices the kernels read programs with, checked even for a scene compiled without
+    # validate_scene (cheap: Python over the programs' rows).
+    check_shading(scene)
     material_index = {m.name: i for i, m in enumerate(scene.materials)}
     medium_index = {m.name: i for i, m in enumerate(scene.media)}
     vertices, indices, tri_mat, tri_med = _merge_meshes(scene, material_index, medium_index)

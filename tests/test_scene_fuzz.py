@@ -1,10 +1,17 @@
-"""Seeded fuzzing of scene folders (issue 17): every run ends in a clean error or a finite image.
+"""Seeded fuzzing of scene folders (issues 17, 37): every run ends in a clean error or a finite image.
 
 A valid scene.json and its arrays are mutated a few hundred times (values, types, keys,
 nesting, huge integers, array files, array paths leaving the folder). Each mutant is loaded
 and validated in-process and must either load or raise SceneError with a one-line message;
 a handful more are rendered by the command line at a tiny size and must exit 0 with a
 finite image or exit 2 with one "error:" line. No run may change a file outside its output.
+
+Issue 37: the shader programs' tables are what a kernel indexes with, and numba checks no
+bounds. bench/scene_fuzz.py mutates a folder whose materials run programs (code and
+binding cells out of range, tables reshaped, registers emptied, attribute and image lists
+and arrays changed) and renders every mutant that loads, in its own process, so that a
+kernel reading outside its arrays shows as a signal death; `python -m bench scene_fuzz`
+runs 10,000 mutants.
 """
 
 from __future__ import annotations
@@ -31,6 +38,7 @@ from renderer.scenefile import load_scene, save_scene
 ROOT = Path(__file__).resolve().parents[1]
 IN_PROCESS_RUNS = 400
 RENDER_RUNS = 5
+PROGRAM_MUTANTS = 300
 EXTREME_VALUES: list[Any] = [
     0, -1, -0.0, 1e-320, 1e-45, 3.5e38, 1e39, 1e300, -1e300, 2**64, 10**50, 0.5, 179.999999,
     "x", "", None, True, [], {}, [1, 2], [[1, 2, 3]] * 4, [1e300] * 3, [0.0, 0.0, 0.0],
@@ -285,3 +293,16 @@ def test_mutated_scenes_render_finite_images_or_fail_cleanly(tmp_path: Path) -> 
             assert result.returncode == 2 and len(errors) == 1, f"{label}: {result.stderr[-2000:]}"
         assert _snapshot(tmp_path, skip={out.name, out.with_suffix(".png").name}) == before, label
     assert outside.exists()
+
+
+def test_program_mutants_are_refused_or_render_finite_pixels() -> None:
+    """PROGRAM_MUTANTS mutants of bench.scene_fuzz's textured folder, each loaded and (if it
+    loads) rendered in one child process: no signal death, no traceback, no hang, no
+    non-finite pixel; refusals are one SceneError line."""
+    command = [sys.executable, "-m", "bench", "scene_fuzz", "--mutants", str(PROGRAM_MUTANTS), "--seed", "37"]
+    result = subprocess.run(command, cwd=ROOT, capture_output=True, text=True, timeout=1800)
+    tail = result.stderr[-3000:]
+    assert result.returncode >= 0, f"killed by signal {-result.returncode} after:\n{tail}"
+    counts = json.loads(result.stdout.strip().splitlines()[-1])
+    assert result.returncode == 0 and counts["failures"] == 0, tail
+    assert counts["refused"] > PROGRAM_MUTANTS // 3 and counts["rendered"] > 0, counts

@@ -18,6 +18,7 @@ from renderer.validate.checks import (
     is_singular,
 )
 from renderer.validate.conform import conform_object, require
+from renderer.validate.program import check_medium_program
 
 GRID_ARRAYS = ("density", "flame", "temperature")
 # Stefan-Boltzmann radiance scaled as Cycles does (renderer/media/blackbody.py): times T^4.
@@ -62,6 +63,7 @@ def check_medium(medium: Medium, path: str) -> None:
     if procedural:
         require(medium.flame is None and medium.temperature is None, f"{path}.program",
                 "a procedural medium takes no flame or temperature grid")
+        check_medium_program(medium.program, medium.program_density, path)
     for name in GRID_ARRAYS:
         if getattr(medium, name) is not None:
             _check_grid_array(getattr(medium, name), f"{path}.{name}")

@@ -50,10 +50,18 @@ from renderer.validate.checks import (
 )
 from renderer.validate.conform import conform_object, require
 from renderer.validate.media import check_medium
+from renderer.validate.program import check_shading
 
 MAX_FILM_SIDE = 16384
 MIN_BATCH_SIZE, MAX_BATCH_SIZE = 1024, 1 << 22
 MAX_IOR = 1e6
+# Cycles' own limits (its max_bounces and samples properties): a path ends after at most
+# MAX_BOUNCES scattering events whatever the scene asks, so no valid scene traces forever
+# (interfaces are capped by the surface stage's MAX_CROSSINGS; null collisions end in finite
+# expected time). Sample indices and seeds are hashed as 64-bit signed integers.
+MAX_BOUNCES = 1024
+MAX_SPP = 1 << 24
+MAX_SEED = 2**63
 
 
 def validate_scene(scene: Scene) -> None:
@@ -76,6 +84,7 @@ def validate_scene(scene: Scene) -> None:
         _check_material(material, f"materials[{i}]")
     for i, mesh in enumerate(scene.meshes):
         _check_mesh(mesh, f"meshes[{i}]", material_names, medium_names)
+    check_shading(scene)
     for i, light in enumerate(scene.lights):
         _check_light(light, f"lights[{i}]")
     for i, medium in enumerate(scene.media):
@@ -144,11 +153,13 @@ def _check_film(film: Film, path: str) -> None:
 
 
 def _check_integrator(settings: IntegratorSettings, path: str) -> None:
-    require(settings.spp >= 1, f"{path}.spp", f"must be >= 1, got {settings.spp}")
-    for name in ("max_bounces", "rr_depth"):
-        value = getattr(settings, name)
-        require(value >= 0, f"{path}.{name}", f"must be >= 0, got {value}")
-    require(0 <= settings.seed < 2**64, f"{path}.seed", f"must be in [0, 2**64), got {settings.seed}")
+    spp_ok = 1 <= settings.spp <= MAX_SPP
+    require(spp_ok, f"{path}.spp", f"must be in [1, {MAX_SPP}], got {settings.spp}")
+    bounces_ok = 0 <= settings.max_bounces <= MAX_BOUNCES
+    require(bounces_ok, f"{path}.max_bounces", f"must be in [0, {MAX_BOUNCES}], got {settings.max_bounces}")
+    rr_ok = 0 <= settings.rr_depth < 2**31
+    require(rr_ok, f"{path}.rr_depth", f"must be in [0, 2**31), got {settings.rr_depth}")
+    require(0 <= settings.seed < MAX_SEED, f"{path}.seed", f"must be in [0, 2**63), got {settings.seed}")
     batch = settings.batch_size
     batch_ok = MIN_BATCH_SIZE <= batch <= MAX_BATCH_SIZE
     require(batch_ok, f"{path}.batch_size", f"must be in [{MIN_BATCH_SIZE}, {MAX_BATCH_SIZE}], got {batch}")
