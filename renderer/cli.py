@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import math
 import os
+import signal
 import sys
 import threading
 import time
@@ -24,6 +25,15 @@ before rendering. The PNG preview (OUTPUT with .png) replaces an existing file o
 wrote it, unless --overwrite is given. Ctrl-C stops the render, writes the samples so far
 and exits with status 130.
 """
+
+
+def _say(text: str, end: str = "\n") -> None:
+    """Write to stderr; a closed pipe or a full disk there drops the text, never the render
+    (the image is what matters, and the exit status says how it went)."""
+    try:
+        print(text, end=end, file=sys.stderr, flush=True)
+    except (OSError, ValueError):  # EPIPE, ENOSPC, EIO; ValueError: stderr closed
+        pass
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -90,12 +100,16 @@ def _bar(done: int, total: int, elapsed: float, err: float) -> str:
 
 
 def _check(args) -> str | None:
-    if args.spp is not None and args.spp < 1:
-        return "--spp must be at least 1"
+    from .validate.scene import MAX_BOUNCES, MAX_SEED, MAX_SPP
+
+    if args.spp is not None and not 1 <= args.spp <= MAX_SPP:
+        return f"--spp must be in [1, {MAX_SPP}]"
     if args.time_limit is not None and args.time_limit <= 0:
         return "--time-limit must be positive"
-    if args.max_bounces is not None and args.max_bounces < 0:
-        return "--max-bounces must be 0 or more"
+    if args.max_bounces is not None and not 0 <= args.max_bounces <= MAX_BOUNCES:
+        return f"--max-bounces must be in [0, {MAX_BOUNCES}]"
+    if args.seed is not None and not 0 <= args.seed < MAX_SEED:
+        return "--seed must be in [0, 2**63)"
     if args.workers < 1:
         return "--workers must be at least 1"
     if args.output.suffix.lower() != ".exr":
@@ -171,11 +185,10 @@ class CompileTicker:
 
         def tick() -> None:
             while True:
-                print(f"\rcompiling kernels (first run only): {time.perf_counter() - t0:.0f} s", end="",
-                      file=sys.stderr, flush=True)
+                _say(f"\rcompiling kernels (first run only): {time.perf_counter() - t0:.0f} s", end="")
                 if self._done.wait(self.interval):
                     break
-            print(f"\rcompiled kernels in {time.perf_counter() - t0:.1f} s", file=sys.stderr, flush=True)
+            _say(f"\rcompiled kernels in {time.perf_counter() - t0:.1f} s")
 
         self._thread = threading.Thread(target=tick, daemon=True)
         self._thread.start()
@@ -188,20 +201,20 @@ class CompileTicker:
 
 
 def render_command(args) -> int:
-    from .memory import check_render_memory
+    from .memory import check_scene_memory, workers_allowed
     from .scenefile import load_scene_and_inputs
     from .workers import start_workers
 
     problem = _check(args)
     if problem:
-        print(f"error: {problem}", file=sys.stderr)
+        _say(f"error: {problem}")
         return 2
     if args.denoise:
         from .denoise import available
 
         if not available():
-            print("error: --denoise needs Open Image Denoise, which was not found (it comes with "
-                  "Blender's bpy module; HAZE_OIDN_LIBRARY may name the library)", file=sys.stderr)
+            _say("error: --denoise needs Open Image Denoise, which was not found (it comes with "
+                 "Blender's bpy module; HAZE_OIDN_LIBRARY may name the library)")
             return 2
     if args.cluster:  # first: an unreachable scheduler is an error in seconds, before any loading
         from .cluster import connect
@@ -210,10 +223,16 @@ def render_command(args) -> int:
     scene, inputs = load_scene_and_inputs(args.scene)
     problem = _outputs_problem(args, inputs)
     if problem:
-        print(f"error: {problem}", file=sys.stderr)
+        _say(f"error: {problem}")
         return 2
     scene.film.aovs = bool(args.denoise)  # the denoiser's albedo and normal passes
-    check_render_memory(scene.film, args.workers)
+    if not args.cluster:  # a cluster's workers are on other machines
+        allowed = workers_allowed(scene, args.workers)
+        if allowed < args.workers:
+            _say(f"warning: rendering with {allowed} worker processes, not {args.workers}: "
+                 f"as many as this machine's cores and memory allow")
+            args.workers = allowed
+    check_scene_memory(scene, args.workers if not args.cluster else 1)
     if not args.cluster:
         # Before numba loads here: the first worker's start overlaps this process's imports (the
         # others start once it is heard from: renderer.render._PoolRender._pool_size).
@@ -242,34 +261,44 @@ def _render_and_write(args, scene) -> int:
         for last in render_progressive(scene, workers=args.workers, target_error=args.target_error,
                                        on_compile=ticker.start, in_process=False, cluster=args.cluster):
             ticker.stop()
-            line = _bar(last.spp, s.spp, last.elapsed, last.error_estimate)
-            print(line, end="", file=sys.stderr, flush=True)
+            _say(_bar(last.spp, s.spp, last.elapsed, last.error_estimate), end="")
     except KeyboardInterrupt:
         interrupted = True
-        print("\ninterrupted: writing the samples so far", file=sys.stderr)
+        _say("\ninterrupted: writing the samples so far")
     finally:
         ticker.stop()
-    print(file=sys.stderr)
-    if last is None:
-        print("error: no samples were rendered", file=sys.stderr)
+    _say("")
+    if last is None or (last.failed and last.film.spp == 0):
+        _say(f"error: {last.note if last is not None else 'no samples were rendered'}")
         return EXIT_INTERRUPTED if interrupted else 1
     image = _denoised(last, scene.camera) if args.denoise else last.image
-    write_exr(args.output, image)
+    _write(write_exr, args.output, image)
     msg = f"wrote {args.output}"
     if not args.no_png:
         png = args.output.with_suffix(".png")
-        write_png(png, image)
+        _write(write_png, png, image)
         msg += f" and {png}"
     seconds = time.perf_counter() - t0
     samples = int(last.film.n.sum())  # traced: a stop in mid-pass leaves some tiles a unit ahead
-    print(msg, file=sys.stderr)
-    if last.note:
-        print(f"warning: {last.note}", file=sys.stderr)
+    _say(msg)
+    if last.note and not last.failed:
+        _say(f"warning: {last.note}")
     if last.film.nonfinite[0]:
         bad = int(last.film.nonfinite[0])
-        print(f"warning: {bad} path values were NaN or infinite and were counted as 0", file=sys.stderr)
-    print(f"{last.spp} spp, {seconds:.2f} s, {samples / seconds / 1e6:.3f} M samples/s", file=sys.stderr)
+        _say(f"warning: {bad} path values were NaN or infinite and were counted as 0")
+    _say(f"{last.spp} spp, {seconds:.2f} s, {samples / seconds / 1e6:.3f} M samples/s")
+    if last.failed:  # the samples done are written, but the render did not finish
+        _say(f"error: {last.note}")
+        return 1
     return EXIT_INTERRUPTED if interrupted else 0
+
+
+def _write(writer, path: Path, image) -> None:
+    """writer(path, image), an OSError naming the file it could not write."""
+    try:
+        writer(path, image)
+    except OSError as error:
+        raise OSError(f"could not write {path}: {error.strerror or error}") from None
 
 
 def _denoised(last, camera):
@@ -278,31 +307,80 @@ def _denoised(last, camera):
     from .passes import film_passes
 
     passes = film_passes(last.film, camera, ("Denoising Albedo", "Denoising Normal"))
-    print("denoising", file=sys.stderr)
+    _say("denoising")
     return denoise(last.image, passes["Denoising Albedo"], passes["Denoising Normal"])
+
+
+class _Stopped(BaseException):
+    """SIGTERM or SIGHUP: unwinds the render like Ctrl-C does (its workers terminated, its
+    scene file removed) instead of ending the process where it stands. A BaseException, so
+    no `except Exception` on the way swallows it."""
+
+    def __init__(self, signum: int):
+        super().__init__(signum)
+        self.signum = signum
+
+
+def _raise_stopped(signum: int, frame) -> None:
+    raise _Stopped(signum)
+
+
+def _stop_on_termination() -> dict:
+    """Handlers for SIGTERM and SIGHUP that raise _Stopped; the previous ones, by signal."""
+    if threading.current_thread() is not threading.main_thread():  # only it may set handlers
+        return {}
+    numbers = [getattr(signal, name) for name in ("SIGTERM", "SIGHUP") if hasattr(signal, name)]
+    return {number: signal.signal(number, _raise_stopped) for number in numbers}
 
 
 def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
+    previous = _stop_on_termination()
+    try:
+        return _main(args)
+    finally:
+        for number, handler in previous.items():  # an in-process caller (tests) gets its own back
+            signal.signal(number, handler)
+        _silence_broken_streams()
+
+
+def _silence_broken_streams() -> None:
+    """Python flushes stdout and stderr at exit, and a broken one (a closed pipe, a full
+    disk) would turn the exit status into 120 after the image was written: such a stream is
+    replaced by the null device."""
+    for name in ("stdout", "stderr"):
+        try:
+            getattr(sys, name).flush()
+        except (OSError, ValueError):
+            try:
+                setattr(sys, name, open(os.devnull, "w"))  # noqa: SIM115 - lives until exit
+            except OSError:
+                pass
+
+
+def _main(args) -> int:
     try:
         if args.command == "render":
             return render_command(args)
+    except _Stopped as stopped:
+        _say(f"\nerror: stopped by {signal.Signals(stopped.signum).name}")
+        return 128 + stopped.signum
     except SceneError as e:
-        print(f"error: {e}", file=sys.stderr)
+        _say(f"error: {e}")
         return 2
     except ClusterError as e:
-        print(f"error: {e}", file=sys.stderr)
+        _say(f"error: {e}")
         return 1
     except FileNotFoundError as e:
-        print(f"error: {e}", file=sys.stderr)
+        _say(f"error: {e}")
         return 2
     except OSError as e:  # e.g. the disk filled up while writing the image
-        print(f"error: {e}", file=sys.stderr)
+        _say(f"error: {e}")
         return 1
     except MemoryError:  # the estimate before rendering was too low, or others took the memory
-        print("error: out of memory while rendering; try a smaller film or fewer --workers", file=sys.stderr)
+        _say("error: out of memory while rendering; try a smaller film or fewer --workers")
         return 1
     except KeyboardInterrupt:  # while loading, or a second Ctrl-C while writing
-        print("\ninterrupted", file=sys.stderr)
+        _say("\ninterrupted")
         return EXIT_INTERRUPTED
     return 1

@@ -71,6 +71,82 @@ def check_render_memory(film: Film, workers: int, available: int | None = None) 
         )
 
 
+# What a render holds beside the film, per item of the scene (bytes per byte of the scene's
+# arrays, or per triangle): a grid or image is held by the scene and again by its compiled
+# table in this process (the workers map the shipment's copy, shared, README "Memory"); an
+# environment map adds its sampling tables (float64 pdf and cdfs per texel: about three
+# times the float32 RGB map); a triangle costs its float64 corners and edges in the compiled
+# geometry (9 * 8 * 2 bytes), its light-table row and Embree's BVH node share (about 100).
+GRID_COPIES = 2
+IMAGE_COPIES = 2
+ENVIRONMENT_COPIES = 4
+BYTES_PER_TRIANGLE = 250
+# A worker process's own memory before its scene: Python, numba and LLVM, its kernels and
+# Embree (`python -m bench worker_memory`: 98 MB of its own each), rounded up.
+PROCESS_BYTES = 150_000_000
+
+
+def _array_bytes(array) -> int:
+    """Bytes of a dense array or a SparseGrid's bricks and index (renderer.media.bricks)."""
+    if array is None:
+        return 0
+    if hasattr(array, "bricks"):
+        return int(array.bricks.nbytes) + int(array.index.nbytes)
+    return int(getattr(array, "nbytes", 0))
+
+
+def scene_memory_items(scene) -> list[tuple[str, int]]:
+    """(field, bytes a render holds for it) for the scene's grids, images, environment map
+    and meshes, largest first."""
+    items = []
+    for i, medium in enumerate(scene.media):
+        for name in ("density", "flame", "temperature"):
+            items.append((f"media[{i}].{name}", GRID_COPIES * _array_bytes(getattr(medium, name))))
+    for i, image in enumerate(scene.images):
+        items.append((f"images[{i}] ({image.name})", IMAGE_COPIES * _array_bytes(image.pixels)))
+    env_map = scene.environment.radiance_map
+    items.append(("environment.radiance_map", ENVIRONMENT_COPIES * _array_bytes(env_map)))
+    for i, mesh in enumerate(scene.meshes):
+        arrays = [mesh.vertices, mesh.indices, mesh.normals, mesh.material_ids]
+        arrays += [attribute.values for attribute in mesh.attributes]
+        triangles = int(getattr(mesh.indices, "shape", (0,))[0])
+        items.append((f"meshes[{i}] ({mesh.name})", 2 * sum(map(_array_bytes, arrays))
+                      + BYTES_PER_TRIANGLE * triangles))
+    return sorted((item for item in items if item[1] > 0), key=lambda item: -item[1])
+
+
+def scene_memory_bytes(scene, workers: int) -> int:
+    """The render's estimate: the film (render_memory_bytes), the scene's items and the
+    worker processes' own memory."""
+    return (render_memory_bytes(scene.film, workers) + sum(size for _, size in scene_memory_items(scene))
+            + PROCESS_BYTES * workers)
+
+
+def check_scene_memory(scene, workers: int, available: int | None = None) -> None:
+    """Refuse a render of `scene` that needs more memory than the machine has, naming the
+    largest item (the film, a grid, an image, the environment map, a mesh or the workers)."""
+    available = available_memory_bytes() if available is None else available
+    needed = scene_memory_bytes(scene, workers)
+    if available is None or needed <= available:
+        return
+    film = ("film", render_memory_bytes(scene.film, workers))
+    processes = (f"{workers} worker processes", PROCESS_BYTES * workers)
+    name, size = max([film, processes, *scene_memory_items(scene)], key=lambda item: item[1])
+    raise SceneError(name, f"the render needs about {needed / 1e9:.1f} GB of memory, {size / 1e9:.1f} GB of "
+                     f"it for this; this machine has {available / 1e9:.1f} GB available")
+
+
+def workers_allowed(scene, workers: int, available: int | None = None) -> int:
+    """`workers`, capped at this machine's cores and at the number whose memory fits
+    (at least 1: check_scene_memory refuses a render even one cannot do)."""
+    cores = os.cpu_count() or 1
+    available = available_memory_bytes() if available is None else available
+    allowed = min(workers, cores)
+    while allowed > 1 and available is not None and scene_memory_bytes(scene, allowed) > available:
+        allowed -= 1
+    return allowed
+
+
 def release_free_memory() -> None:
     """Hand the C heap's free pages back to the system (glibc only; elsewhere nothing).
 

@@ -32,6 +32,9 @@ class Progress:
     error_estimate: float  # estimated relMSE of `image` (nan before 2 spp)
     film: Film
     note: str = ""  # what went wrong, when the render stopped short for another reason than asked
+    # The render could not go on (its worker processes kept dying): `note` says why, and a
+    # caller reports an error (the command line exits non-zero) instead of a warning.
+    failed: bool = False
 
 
 def target_reached(film: Film, target_error: float) -> bool:
@@ -41,9 +44,10 @@ def target_reached(film: Film, target_error: float) -> bool:
     return False
 
 
-def progress_now(film: Film, settings: IntegratorSettings, t0: float, note: str = "") -> Progress:
+def progress_now(film: Film, settings: IntegratorSettings, t0: float, note: str = "",
+                 failed: bool = False) -> Progress:
     return Progress(film.image(), film.spp, settings.spp, time.perf_counter() - t0, film.rel_mse_estimate(),
-                    film, note)
+                    film, note, failed)
 
 
 class Pacer:
@@ -93,7 +97,10 @@ class UnitMerger:
 
 def announce_compile(names: list[str]) -> None:
     """What a process says before it compiles kernels (once per machine and Haze build)."""
-    print(f"haze: compiling kernels (first run only): {', '.join(names)}", file=sys.stderr, flush=True)
+    try:
+        print(f"haze: compiling kernels (first run only): {', '.join(names)}", file=sys.stderr, flush=True)
+    except (OSError, ValueError):  # a broken stderr (closed pipe, full disk) must not stop a render
+        pass
 
 
 class Clock:

@@ -235,6 +235,7 @@ class _PoolRender(Schedule):
         if self.attempts[unit.index] >= MAX_ATTEMPTS:
             self.note = (f"worker processes died {MAX_ATTEMPTS} times tracing {unit.describe()} (last exit"
                          f" code {code}); stopped with the samples done")
+            self.failed = True
             return
         self._retry(unit)
 

@@ -62,6 +62,7 @@ class Schedule:
         self.clock = Clock(settings, t0)
         self.stop_at = math.inf  # when units still in flight are given up
         self.note = ""
+        self.failed = False  # the note is a failure (units given up): see Progress.failed
         self.pacer = Pacer()
         self.target_met = False
 
@@ -154,4 +155,4 @@ class Schedule:
             self.on_compile(names)
 
     def progress_now(self) -> Progress:
-        return progress_now(self.film, self.settings, self.t0, self.note)
+        return progress_now(self.film, self.settings, self.t0, self.note, self.failed)

@@ -23,6 +23,7 @@ import mmap
 import os
 import pickle
 import struct
+import sys
 import tempfile
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -101,13 +102,59 @@ def shipped(cs: CompiledScene, settings: IntegratorSettings) -> Iterator[Shipmen
         digest.update(raw)
     key = digest.hexdigest()
     remove_leftovers()
-    fd, path = tempfile.mkstemp(prefix=f"haze-scene-{key[:8]}-", suffix=".pkl")
+    remove_orphans()
     try:
-        with os.fdopen(fd, "wb") as f:
-            _write_shipment(f, data, raws, pickle.dumps(pickler.files))
+        fd, path = tempfile.mkstemp(prefix=f"{PREFIX}{os.getpid()}-{key[:8]}-", suffix=".pkl")
+    except OSError as error:
+        raise OSError(f"could not create the scene file for the workers in {tempfile.gettempdir()}: "
+                      f"{error.strerror or error} (TMPDIR chooses the folder)") from None
+    try:
+        try:
+            with os.fdopen(fd, "wb") as f:
+                _write_shipment(f, data, raws, pickle.dumps(pickler.files))
+        except OSError as error:
+            raise OSError(f"could not write the scene file for the workers {path}: {error.strerror or error}"
+                          " (TMPDIR chooses the folder)") from None
         yield Shipment(key, path)
     finally:
         _remove(path)
+
+
+# Shipment files are named PREFIX<owner pid>-<key>-<random>.pkl: a file whose owner is gone
+# (a parent killed with SIGKILL never removes its own) is removed by the next render.
+PREFIX = "haze-scene-"
+
+
+def remove_orphans(folder: str | None = None) -> None:
+    """Remove this user's shipment files whose owning process no longer runs (POSIX only:
+    os.kill(pid, 0) would end the process on Windows)."""
+    if sys.platform == "win32":
+        return
+    folder = folder or tempfile.gettempdir()
+    try:
+        names = [n for n in os.listdir(folder) if n.startswith(PREFIX) and n.endswith(".pkl")]
+    except OSError:
+        return
+    for name in names:
+        owner = name[len(PREFIX):].split("-", 1)[0]
+        if not owner.isdigit() or int(owner) == os.getpid() or _running(int(owner)):
+            continue
+        path = os.path.join(folder, name)
+        try:
+            if os.stat(path).st_uid == os.getuid():  # only this user's (a shared /tmp)
+                os.unlink(path)
+        except (OSError, AttributeError):  # gone already, or not ours; Windows: no getuid
+            pass
+
+
+def _running(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except (PermissionError, OSError):  # another user's process, or a platform without signals
+        return True
+    return True
 
 
 def _write_shipment(f, data: bytes, raws: list[memoryview], files: bytes) -> None:

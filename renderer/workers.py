@@ -8,6 +8,14 @@ The parent (renderer.render) watches each worker's pipe and process sentinel, so
 terminate one stuck inside a kernel and notice one that died. Every child process Haze
 starts (these, a LocalCluster's) is started under `spawning()`.
 
+Workers die with their parent whatever ends it: on Linux each asks the kernel for SIGKILL
+when its parent goes (prctl PR_SET_PDEATHSIG), which ends it even inside a kernel call,
+where no Python code of its own could run. That signal follows the parent *thread* that
+started the process, so workers are started by the main thread, or else by one thread that
+lives as long as the process (_Spawner: Blender renders on threads that end with each
+render). The multiprocessing resource tracker exits once its last client is gone; scene
+files a killed parent left are removed by the next render (renderer.shipment).
+
 This module imports only the standard library, so a caller can start workers before it
 imports numba (`start_workers`): the workers' imports then overlap its own. A worker
 imports the renderer as soon as it starts, before its first task.
@@ -16,8 +24,11 @@ imports the renderer as soon as it starts, before its first task.
 from __future__ import annotations
 
 import atexit
+import ctypes
 import multiprocessing
+import os
 import pickle
+import queue
 import signal
 import sys
 import threading
@@ -36,10 +47,26 @@ if TYPE_CHECKING:
     from .integrator.wavefront import Tracer
     from .units import Unit
 
+# prctl(2) option: the signal this process gets when its parent thread ends (Linux).
+PR_SET_PDEATHSIG = 1
 
 
-def _worker_main(conn: Connection) -> None:
+def die_with_parent(parent: int) -> None:
+    """Have the kernel SIGKILL this process when its parent ends (Linux); exit now if the
+    parent (process id `parent`) is already gone, which the signal would never report."""
+    if sys.platform.startswith("linux"):
+        try:
+            libc = ctypes.CDLL(None, use_errno=True)
+            libc.prctl(PR_SET_PDEATHSIG, int(signal.SIGKILL), 0, 0, 0)
+        except (OSError, AttributeError):  # no prctl: the parent's pipe still ends idle workers
+            pass
+    if os.getppid() != parent:
+        os._exit(1)
+
+
+def _worker_main(conn: Connection, parent: int) -> None:
     """A worker: trace the units it is sent, keeping the tracer of the last scene."""
+    die_with_parent(parent)
     # Ctrl-C reaches the whole process group; the parent decides what stops, and a worker
     # interrupted mid-unit would only print a traceback.
     signal.signal(signal.SIGINT, signal.SIG_IGN)
@@ -133,13 +160,52 @@ def spawning() -> Iterator[None]:
         yield
 
 
+class _Spawner:
+    """The thread that starts workers for threads other than the main one. It lives as long
+    as the process, so a worker's parent-death signal (die_with_parent) fires only when the
+    process ends, not when the render thread that wanted the worker does."""
+
+    def __init__(self) -> None:
+        self.requests: queue.Queue = queue.Queue()
+        self.thread: threading.Thread | None = None
+        self.lock = threading.Lock()
+
+    def start(self, process) -> None:
+        """process.start() on a thread that outlives the caller's; its exception, raised here."""
+        if threading.current_thread() is threading.main_thread():
+            process.start()
+            return
+        with self.lock:
+            if self.thread is None:
+                self.thread = threading.Thread(target=self._serve, daemon=True, name="haze-spawner")
+                self.thread.start()
+        done: queue.Queue = queue.Queue(maxsize=1)
+        self.requests.put((process, done))
+        error = done.get()
+        if error is not None:
+            raise error
+
+    def _serve(self) -> None:
+        while True:
+            process, done = self.requests.get()
+            try:
+                process.start()
+                done.put(None)
+            except BaseException as error:  # noqa: BLE001 - handed to the caller
+                done.put(error)
+
+
+_spawner = _Spawner()
+
+
 class Worker:
     def __init__(self) -> None:
         ctx = multiprocessing.get_context("spawn")  # Blender cannot fork; spawn everywhere alike
         self.conn, child = ctx.Pipe()
-        self.process = ctx.Process(target=_worker_main, args=(child,), daemon=True, name="haze-worker")
-        with spawning():
-            self.process.start()
+        self.process = ctx.Process(target=_worker_main, args=(child, os.getpid()), daemon=True,
+                                   name="haze-worker")
+        with spawning():  # SIGINT ignored and __main__ hidden process-wide, for the spawner too
+            _spawner.start(self.process)
         child.close()
         self.unit: Unit | None = None  # the unit in flight
         self.compiling = False

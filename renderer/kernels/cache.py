@@ -134,13 +134,35 @@ class CompileLog(event.Listener):
 
 
 _held: dict[str, int] = {}  # locks this process holds, with their depth (re-entry is free)
+# How long a compile waits for another process's lock on the same function before it
+# compiles the function itself (a compile of one function takes seconds to a minute or two):
+# the holder may be stopped (Ctrl-Z) or stuck, and a render must not wait forever.
+LOCK_WAIT = 600.0
+LOCK_POLL = 0.2
+_warned: set[str] = set()
+
+
+def _warn(text: str) -> None:
+    """One line on stderr, once per text and process; dropped if stderr is broken."""
+    if text in _warned:
+        return
+    _warned.add(text)
+    try:
+        print(f"haze: warning: {text}", file=sys.stderr, flush=True)
+    except (OSError, ValueError):
+        pass
 
 
 @contextmanager
 def function_lock(name: str, blocking: bool = True) -> Iterator[bool]:
     """Hold the compile lock of function `name` (an OS file lock, released if the process
-    dies). Yields True once held; with blocking=False, False at once if another process
-    holds it. Re-entrant within a process."""
+    dies; the file holds its owner's process id). Yields True once held; with
+    blocking=False, False at once if another process holds it. Re-entrant within a process.
+
+    A blocking wait ends without the lock (yielding True: the caller compiles on its own,
+    as a process without a cache would) when the owner is stopped, after LOCK_WAIT seconds,
+    or when the lock file cannot be opened (a read-only cache, a `locks` that is a file),
+    each said once on stderr."""
     if name in _held:
         _held[name] += 1
         try:
@@ -148,19 +170,72 @@ def function_lock(name: str, blocking: bool = True) -> Iterator[bool]:
         finally:
             _held[name] -= 1
         return
-    folder = kernel_cache_dir() / LOCK_FOLDER
-    folder.mkdir(parents=True, exist_ok=True)
     digest = hashlib.sha1(name.encode()).hexdigest()[:12]  # short, portable file names
-    with open(folder / f"{name[-60:]}-{digest}.lock", "a+b") as f:
-        if not _lock(f, blocking):
-            yield False
+    path = kernel_cache_dir() / LOCK_FOLDER / f"{name[-60:]}-{digest}.lock"
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        f = open(path, "a+b")  # noqa: SIM115 - closed below, after the caller's block
+    except OSError as error:
+        problem = error.strerror or error
+        _warn(f"kernel compile locks unusable ({path.parent}: {problem}); compiling without them")
+        yield blocking
+        return
+    with f:
+        held = _lock(f, False) or (blocking and _wait_for(f, name))
+        if not held:
+            yield blocking  # not blocking: someone else compiles it; blocking: gave up waiting
             return
         _held[name] = 1
+        _write_owner(f)
         try:
             yield True
         finally:
             del _held[name]
             _unlock(f)
+
+
+def _wait_for(f, name: str) -> bool:
+    """Wait for the lock on f: True once held, False when its owner is stopped or LOCK_WAIT passed."""
+    deadline = time.monotonic() + LOCK_WAIT
+    while True:
+        if _lock(f, False):
+            return True
+        owner = _owner(f)
+        if owner is not None and _is_stopped(owner):
+            _warn(f"process {owner} holds the compile lock of {name} but is stopped; compiling it here")
+            return False
+        if time.monotonic() >= deadline:
+            who = f"process {owner}" if owner is not None else "another process"
+            _warn(f"{who} has held the compile lock of {name} for over {LOCK_WAIT:.0f} s; compiling it here")
+            return False
+        time.sleep(LOCK_POLL)
+
+
+def _write_owner(f) -> None:
+    try:
+        f.truncate(0)
+        f.write(str(os.getpid()).encode())
+        f.flush()
+    except OSError:  # a full disk: the lock holds all the same, only unnamed
+        pass
+
+
+def _owner(f) -> int | None:
+    try:
+        f.seek(0)
+        text = f.read(32).decode("ascii", "replace").strip()
+    except OSError:
+        return None
+    return int(text) if text.isdigit() else None
+
+
+def _is_stopped(pid: int) -> bool:
+    """Whether process `pid` is stopped (Ctrl-Z, SIGSTOP) or traced; Linux's /proc only."""
+    try:
+        stat = Path(f"/proc/{pid}/stat").read_text()
+    except OSError:
+        return False
+    return stat[stat.rfind(")") + 2:stat.rfind(")") + 3] in ("T", "t")
 
 
 if sys.platform == "win32":
