@@ -109,7 +109,7 @@ def _check(args) -> str | None:
     if args.max_bounces is not None and not 0 <= args.max_bounces <= MAX_BOUNCES:
         return f"--max-bounces must be in [0, {MAX_BOUNCES}]"
     if args.seed is not None and not 0 <= args.seed < MAX_SEED:
-        return "--seed must be in [0, 2**63)"
+        return "--seed must be in [0, 2**64)"
     if args.workers < 1:
         return "--workers must be at least 1"
     if args.output.suffix.lower() != ".exr":

@@ -91,5 +91,12 @@ def trace_unit(tracer: Tracer, unit: Unit, seed: int) -> Film:
     from .film import Film
 
     part = Film(tracer.cs.width, unit.rows, unit.first_row)
-    tracer.trace(part, unit.first_sample, unit.samples, seed)
+    tracer.trace(part, unit.first_sample, unit.samples, kernel_seed(seed))
     return part
+
+
+def kernel_seed(seed: int) -> int:
+    """A seed in [0, 2**64) as the int64 with the same bits: the kernels take an int64 and
+    hash it as uint64 (kernels.rng.path_key), so seeds from 2**63 on give the keys of their
+    unsigned value instead of a typing error (numba would type such an int as uint64)."""
+    return seed - (1 << 64) if seed >= 1 << 63 else seed

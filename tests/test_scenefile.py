@@ -280,7 +280,7 @@ _BAD_VALUES = [
     ("lights[2].irradiance", (-1.0, 0.0, 0.0), "lights[2].irradiance", "must not be negative"),
     ("environment.radiance", (-1.0, 0.0, 0.0), "environment.radiance", "must not be negative"),
     ("integrator.time_limit", -1.0, "integrator.time_limit", "must be >= 0"),
-    ("integrator.seed", -1, "integrator.seed", "must be in [0, 2**63)"),
+    ("integrator.seed", -1, "integrator.seed", "must be in [0, 2**64)"),
     # out of range
     ("materials[0].lobes[0].roughness", 1.5, "materials[0].lobes[0].roughness", "must be in [0, 1]"),
     ("materials[0].lobes[0].ior", 0.0, "materials[0].lobes[0].ior", "must be > 0"),

@@ -58,10 +58,10 @@ MAX_IOR = 1e6
 # Cycles' own limits (its max_bounces and samples properties): a path ends after at most
 # MAX_BOUNCES scattering events whatever the scene asks, so no valid scene traces forever
 # (interfaces are capped by the surface stage's MAX_CROSSINGS; null collisions end in finite
-# expected time). Sample indices and seeds are hashed as 64-bit signed integers.
+# expected time). Seeds are 64-bit (renderer.units.kernel_seed).
 MAX_BOUNCES = 1024
 MAX_SPP = 1 << 24
-MAX_SEED = 2**63
+MAX_SEED = 2**64
 
 
 def validate_scene(scene: Scene) -> None:
@@ -159,7 +159,7 @@ def _check_integrator(settings: IntegratorSettings, path: str) -> None:
     require(bounces_ok, f"{path}.max_bounces", f"must be in [0, {MAX_BOUNCES}], got {settings.max_bounces}")
     rr_ok = 0 <= settings.rr_depth < 2**31
     require(rr_ok, f"{path}.rr_depth", f"must be in [0, 2**31), got {settings.rr_depth}")
-    require(0 <= settings.seed < MAX_SEED, f"{path}.seed", f"must be in [0, 2**63), got {settings.seed}")
+    require(0 <= settings.seed < MAX_SEED, f"{path}.seed", f"must be in [0, 2**64), got {settings.seed}")
     batch = settings.batch_size
     batch_ok = MIN_BATCH_SIZE <= batch <= MAX_BATCH_SIZE
     require(batch_ok, f"{path}.batch_size", f"must be in [{MIN_BATCH_SIZE}, {MAX_BATCH_SIZE}], got {batch}")
