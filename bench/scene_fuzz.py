@@ -289,17 +289,17 @@ def _apply(mutation, rng: random.Random, data: dict, folder: Path) -> str:
 
 
 def render_finite(scene: Scene) -> bool:
-    """Render `scene` in this process at most RENDER_SIDE pixels wide, 1 spp: finite pixels?"""
+    """Render `scene` in this process at most RENDER_SIDE pixels wide, 1 spp, as a worker
+    traces a unit (renderer.units.trace_unit): finite pixels?"""
     from renderer.compile import compile_scene
-    from renderer.film import Film as FilmSums
     from renderer.integrator.wavefront import Tracer
+    from renderer.units import Unit, trace_unit
 
     scene.film.width = min(scene.film.width, RENDER_SIDE)
     scene.film.height = min(scene.film.height, RENDER_SIDE)
     scene.film.region = None
     cs = compile_scene(scene)
-    film = FilmSums(cs.width, cs.height)
-    Tracer(cs, scene.integrator).trace(film, 0, 1, scene.integrator.seed)
+    film = trace_unit(Tracer(cs, scene.integrator), Unit(0, 0, 1, 0, cs.height), scene.integrator.seed)
     return bool(np.isfinite(film.image()).all())
 
 

@@ -242,3 +242,19 @@ def test_orphan_scene_files_of_live_processes_and_other_names_are_kept(tmp_path:
         file.write_bytes(b"")
     remove_orphans(str(tmp_path))
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted(list(files)[1:])
+
+
+def test_a_worker_started_by_a_thread_that_ends_lives_on() -> None:
+    """The parent-death signal follows the thread that started a process: workers a render
+    thread asks for (Blender's F12) must outlive it, to serve the next render."""
+    from renderer.workers import Pool
+
+    pool = Pool()
+    thread = threading.Thread(target=pool.resize, args=(1,))
+    thread.start()
+    thread.join()
+    try:
+        time.sleep(2.0)
+        assert len(pool.workers) == 1 and pool.workers[0].alive()
+    finally:
+        pool.shutdown()
