@@ -64,9 +64,12 @@ def die_with_parent(parent: int) -> None:
         os._exit(1)
 
 
-def _worker_main(conn: Connection, parent: int) -> None:
-    """A worker: trace the units it is sent, keeping the tracer of the last scene."""
-    die_with_parent(parent)
+def _worker_main(conn: Connection, parent: int | None = None) -> None:
+    """A worker: trace the units it is sent, keeping the tracer of the last scene. `parent`:
+    the process id of the process that started it (None: the loop runs in its caller's
+    process, as tests run it, which must not die with its parent)."""
+    if parent is not None:
+        die_with_parent(parent)
     # Ctrl-C reaches the whole process group; the parent decides what stops, and a worker
     # interrupted mid-unit would only print a traceback.
     signal.signal(signal.SIGINT, signal.SIG_IGN)
