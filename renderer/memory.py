@@ -8,6 +8,7 @@ from __future__ import annotations
 import os
 import sys
 
+from renderer.cores import usable_cores
 from renderer.errors import SceneError
 from renderer.scene import Film
 from renderer.units import UNIT_PATHS, tile_rows
@@ -137,9 +138,9 @@ def check_scene_memory(scene, workers: int, available: int | None = None) -> Non
 
 
 def workers_allowed(scene, workers: int, available: int | None = None) -> int:
-    """`workers`, capped at this machine's cores and at the number whose memory fits
+    """`workers`, capped at the cores this process may use and at the number whose memory fits
     (at least 1: check_scene_memory refuses a render even one cannot do)."""
-    cores = os.cpu_count() or 1
+    cores = usable_cores()
     available = available_memory_bytes() if available is None else available
     allowed = min(workers, cores)
     while allowed > 1 and available is not None and scene_memory_bytes(scene, allowed) > available:

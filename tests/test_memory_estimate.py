@@ -5,12 +5,11 @@ views (their nbytes is the size a real one would have, without the memory)."""
 
 from __future__ import annotations
 
-import os
-
 import numpy as np
 import pytest
 
 from examples.scenes import cornell_box, cornell_fog
+from renderer.cores import usable_cores
 from renderer.errors import SceneError
 from renderer.memory import (
     PROCESS_BYTES,
@@ -56,7 +55,7 @@ def test_small_scenes_pass_and_each_worker_costs_its_process() -> None:
 
 def test_workers_are_capped_at_cores_and_memory() -> None:
     scene = cornell_box(size=64, spp=1)
-    cores = os.cpu_count() or 1
+    cores = usable_cores()
     assert workers_allowed(scene, 400, available=1000 * GB) == cores
     assert workers_allowed(scene, 1, available=1000 * GB) == 1
     fits_two = scene_memory_bytes(scene, 2) + 1
