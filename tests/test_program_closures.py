@@ -18,6 +18,10 @@ textured emission, Alpha and IOR.
   Filter Width is small (0.02) so its height offsets (a fraction of a pixel's footprint)
   approach the exact gradient Haze takes (renderer.shading.bump).
 
+* Displacement (a Material Output's Displacement, rendered as bump as Cycles' default
+  method, Bump Only, does): a Displacement node of a Noise height in world space on one
+  plane, in object space on a plane scaled by 2 (its offsets are in object units).
+
 * A world program (issue 14 item 5): a gradient sky (Generated = the direction, through
   Math and a Color Ramp) mixed half and half with an HDRI (an Environment Texture of a
   small linear EXR whose colour varies with azimuth and height) times a warm colour,
@@ -144,6 +148,27 @@ def bumped(name, after_normal_map=False):
     return material
 
 
+def displaced(name, space="OBJECT"):
+    """Principled (single-scatter GGX) over a Material Output Displacement: a Displacement
+    node of a Noise height, which Cycles renders as bump (the default method, Bump Only)."""
+    material, tree, out = C.node_material(name)
+    n, link = tree.nodes.new, tree.links.new
+    bsdf = n("ShaderNodeBsdfPrincipled")
+    bsdf.distribution = "GGX"
+    bsdf.inputs["Base Color"].default_value = (0.5, 0.55, 0.45, 1)
+    bsdf.inputs["Roughness"].default_value = 0.35
+    noise = n("ShaderNodeTexNoise")
+    noise.inputs["Scale"].default_value = 3.0
+    noise.inputs["Detail"].default_value = 1.0
+    displacement = n("ShaderNodeDisplacement")
+    displacement.space = space
+    displacement.inputs["Scale"].default_value = 0.2
+    link(noise.outputs["Fac"], displacement.inputs["Height"])
+    link(displacement.outputs["Displacement"], out.inputs["Displacement"])
+    link(bsdf.outputs["BSDF"], out.inputs["Surface"])
+    return material
+
+
 def render(scene, name):
     scene.render.resolution_x = scene.render.resolution_y = SIZE
     scene.render.resolution_percentage = 100
@@ -201,6 +226,21 @@ def bump_scene():
     H.add_light("SUN", "Sun", (0.0, 0.0, 5.0), (50.0, 0.0, 60.0), energy=3.0, angle=math.radians(4.0))
     C.add_camera(scene, (0.0, -3.0, 2.4), (51.0, 0.0, 0.0), lens=26.0)
     return render(scene, "bump")
+
+
+def displacement_scene():
+    """Displacement as bump: in world space on a plane, and in object space (the node's
+    default) on a plane of half the size scaled by 2, whose bump is then twice as deep."""
+    scene = C.clear_scene()
+    H.world_color(scene, (0.4, 0.45, 0.5), 1.0)
+    H.uv_quad("World", [(-2.1, -1, 0), (-0.1, -1, 0), (-0.1, 1, 0), (-2.1, 1, 0)],
+              displaced("World", "WORLD"))
+    scaled = H.uv_quad("Scaled", [(-0.5, -0.5, 0), (0.5, -0.5, 0), (0.5, 0.5, 0), (-0.5, 0.5, 0)],
+                       displaced("Object"))
+    scaled.location, scaled.scale = (1.1, 0.0, 0.0), (2.0, 2.0, 2.0)
+    H.add_light("SUN", "Sun", (0.0, 0.0, 5.0), (50.0, 0.0, 60.0), energy=3.0, angle=math.radians(4.0))
+    C.add_camera(scene, (0.0, -3.0, 2.4), (51.0, 0.0, 0.0), lens=26.0)
+    return render(scene, "displacement")
 
 
 def gradient_world(scene):
@@ -284,7 +324,7 @@ def gradient_world_scene():
 def main():
     H.enable_addon()
     return {{"emitter": emitter_scene(), "leaf": leaf_scene(), "normal_map": normal_map_scene(),
-             "bump": bump_scene(),
+             "bump": bump_scene(), "displacement": displacement_scene(),
              "gradient_world": gradient_world_scene()}}
 '''
 
@@ -296,7 +336,7 @@ def _images(paths: list[str]) -> np.ndarray:
     return np.stack([read_exr(p) for p in paths])
 
 
-@pytest.mark.parametrize("scene", ["emitter", "leaf", "normal_map", "bump", "gradient_world"])
+@pytest.mark.parametrize("scene", ["emitter", "leaf", "normal_map", "bump", "displacement", "gradient_world"])
 def test_program_driven_closures_agree_with_cycles(renders, scene):
     haze, cycles = _images(renders[scene]["haze"]), _images(renders[scene]["cycles"])
     assert haze.shape == cycles.shape == (RUNS, SIZE, SIZE, 3)

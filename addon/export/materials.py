@@ -24,6 +24,7 @@ from renderer.shading.program import BIND_FIELDS, BIND_SCALE, BIND_SET
 from .images import ImageLibrary
 from .messages import Messages, material_subject
 from .node_closures import VOLUME_KINDS, Term, as_volume_terms, rgb
+from .node_program_normals import displacement_bump
 from .nodes import ShaderGraph
 from .procedural_volume import density_register, reads_only_coordinates
 
@@ -242,13 +243,35 @@ def convert_material(blender_material, messages: Messages,
         return MaterialExport(Material(name, lobes=close_open_sides([])), None)
     graph = ShaderGraph(subject, messages, images)
     graph.pass_index = blender_material.pass_index
-    if graph.link_source(output.inputs["Displacement"]) is not None:
-        messages.warn(subject, "displacement is not supported and is ignored")
     medium = convert_volume(tree, output, messages, subject, medium_name(name), images is not None)
     if graph.link_source(output.inputs["Surface"]) is None and medium is not None:
         return MaterialExport(Material(name), medium)  # invisible boundary of the medium
     surface = graph.closure(output.inputs["Surface"])
+    surface = displaced_as_bump(blender_material, graph, output, surface, messages, subject)
     return MaterialExport(surface_material(name, surface, messages, graph.program), medium)
+
+
+def displaced_as_bump(blender_material, graph: ShaderGraph, output, terms: list[Term], messages: Messages,
+                      subject: str) -> list[Term]:
+    """The surface terms with the Displacement output's bump (Cycles' default method, Bump
+    Only) as the normal of every lobe without a Normal input of its own."""
+    socket = output.inputs["Displacement"]
+    if graph.link_source(socket) is None:
+        return terms
+    method = getattr(blender_material, "displacement_method", "BUMP")
+    if method != "BUMP":
+        messages.warn(subject, f"displacement method {method.replace('_', ' ').lower()} is rendered as "
+                      "Bump Only (the mesh is not displaced)")
+    if not graph.programs:
+        return terms
+    normal = displacement_bump(graph, socket)
+    if normal is None:
+        return terms
+    if any(field == "normal" for t in terms for field, _ in t.binds):
+        messages.warn(subject, "the displacement's bump is not combined with a closure's own Normal "
+                      "input; that Normal is used")
+        return terms
+    return [replace(t, binds=t.binds + (("normal", normal),)) if t.kind in LOBE_KINDS else t for t in terms]
 
 
 class MaterialLibrary:

@@ -1,7 +1,8 @@
 """Per-object values the Object Info node reads (Cycles' KernelObject: location, color,
 alpha, pass_id, random_number), exported as corner attributes constant over the object:
 "info:location" (world-space origin), "info:color" (the object's Color RGB) and
-"info:values" (alpha, pass index, random), so shader programs read them with the
+"info:values" (alpha, pass index, random) and "info:scale" (the transform's uniform
+scale, for object-space displacement), so shader programs read them with the
 ordinary attribute operation. Only objects whose materials read them carry them.
 
 Random, as Cycles' blender/object.cpp sets random_id: for an instance, the dependency
@@ -47,10 +48,19 @@ def random_number(name: str, instance_random_id: int | None = None) -> float:
     return float(np.float32(rid & _M) * np.float32(1.0 / 0xFFFFFFFF))
 
 
+OBJECT_SCALE = "info:scale"  # the object's uniform scale, for object-space displacement
+
+
+def uniform_scale(matrix: np.ndarray) -> float:
+    """The scale of a 4x4 transform as one number: the cube root of its volume change."""
+    return float(abs(np.linalg.det(np.asarray(matrix, np.float64)[:3, :3])) ** (1.0 / 3.0))
+
+
 def object_info_values(obj, matrix: np.ndarray, instance_random_id: int | None = None) -> dict:
-    """The three attributes' values (3,) float32 of object `obj` placed by `matrix` (4x4)."""
+    """The attributes' values (3,) float32 of object `obj` placed by `matrix` (4x4)."""
     color = [float(c) for c in obj.color]
     return {"info:location": np.asarray(matrix[:3, 3], np.float32),
+            OBJECT_SCALE: np.full(3, uniform_scale(matrix), np.float32),
             "info:color": np.asarray(color[:3], np.float32),
             "info:values": np.array([color[3], float(obj.pass_index),
                                      random_number(obj.name, instance_random_id)], np.float32)}
