@@ -669,8 +669,9 @@ def state():
         "operator": hasattr(bpy.types, "EXPORT_SCENE_OT_haze"),
         "panels": {name: compat(name) for name in ("RENDER_PT_format", "RENDER_PT_color_management",
                                                    "DATA_PT_lens", "EEVEE_MATERIAL_PT_surface",
-                                                   "EEVEE_WORLD_PT_volume", "DATA_PT_EEVEE_light",
-                                                   "DATA_PT_light", "RENDER_PT_freestyle")},
+                                                   "EEVEE_WORLD_PT_volume", "DATA_PT_camera_dof",
+                                                   "DATA_PT_EEVEE_light", "DATA_PT_light",
+                                                   "RENDER_PT_freestyle")},
         "own_panel": hasattr(bpy.types, "HAZE_RENDER_PT_sampling"),
     }
 
@@ -693,8 +694,10 @@ def test_register_and_unregister_cleanly(tmp_path):
     assert all(registered[key] for key in ("engine", "settings", "own_panel", "operator"))
     assert registered["panels"] == {"RENDER_PT_format": True, "RENDER_PT_color_management": True,
                                     "DATA_PT_lens": True, "EEVEE_MATERIAL_PT_surface": True,
-                                    "EEVEE_WORLD_PT_volume": True, "DATA_PT_EEVEE_light": True,
-                                    "DATA_PT_light": False, "RENDER_PT_freestyle": False}
+                                    "EEVEE_WORLD_PT_volume": True, "DATA_PT_camera_dof": True,
+                                    # Haze's own Light panel (HAZE_DATA_PT_light) replaces both:
+                                    "DATA_PT_EEVEE_light": False, "DATA_PT_light": False,
+                                    "RENDER_PT_freestyle": False}
     assert not any(unregistered[key] for key in ("engine", "settings", "own_panel", "operator"))
     assert not any(unregistered["panels"].values())
     assert run.result["again"] == registered
