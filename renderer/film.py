@@ -11,13 +11,27 @@ other, so the second moment (kept for the variance of independent samples) overs
 
 from __future__ import annotations
 
-import numpy as np
+from typing import NamedTuple
 
-from .integrator.paths import AOV_COUNT, AOV_FIRST, LIGHT_AOV_FIRST
-from .kernels import kernel
+import numpy as np
 
 # relMSE = mean((x - ref)^2 / (ref^2 + REL_EPS)); the offset keeps black pixels from dominating.
 REL_EPS = 1e-2
+
+
+class FilmSums(NamedTuple):
+    """A Film's arrays as the splat kernel (integrator.splat) adds to them: P pixels, float64
+    unless noted. sum, sq (P, 3); n (P,) int64; odd (P, 4), the odd samples' sum (0-2) and
+    count (3); nonfinite (1,) int64; alpha (P,); aov (P, C), the passes' sums, or (0, C)
+    when the render has none."""
+
+    sum: np.ndarray
+    sq: np.ndarray
+    n: np.ndarray
+    odd: np.ndarray
+    nonfinite: np.ndarray
+    alpha: np.ndarray
+    aov: np.ndarray
 
 
 class Film:
@@ -37,8 +51,9 @@ class Film:
         # passes requested adds to this film (ensure_aov): a film without passes holds none.
         self.aov: np.ndarray | None = None
 
-    def ensure_aov(self, columns: int = AOV_COUNT) -> np.ndarray:
-        """The passes' sums: AOV_COUNT columns, + LIGHT_AOV_COUNT with the light passes."""
+    def ensure_aov(self, columns: int) -> np.ndarray:
+        """The passes' sums: integrator.paths.AOV_COUNT columns, + LIGHT_AOV_COUNT with the
+        light passes."""
         if self.aov is None:
             self.aov = np.zeros((self.width * self.height, columns), np.float64)
         assert self.aov.shape[1] == columns, "films with different passes cannot be added"
@@ -57,6 +72,11 @@ class Film:
         self.nonfinite += other.nonfinite
         if other.aov is not None:
             self.ensure_aov(other.aov.shape[1])[at] += other.aov
+
+    def sums(self, aov: np.ndarray) -> FilmSums:
+        """The arrays the splat adds to, with `aov` for the passes' sums (ensure_aov, or an
+        empty array when the render has no passes)."""
+        return FilmSums(self.sum, self.sq, self.n, self.odd, self.nonfinite, self.alpha, aov)
 
     @property
     def spp(self) -> int:
@@ -122,39 +142,6 @@ class Film:
         m = self.mean().reshape(shape)
         level = np.minimum(m, box_mean(m, 2))
         return float(np.mean(self.split_variance_of_mean().reshape(shape) / (level * level + REL_EPS)))
-
-
-@kernel
-def splat(n, L, pixel_of_pid, half_of_pid, film_sum, film_sq, film_n, film_odd, film_nonfinite, film_alpha,
-          film_aov):
-    """Add paths 0..n-1 of a batch (radiance L[pid, :3], pixel pixel_of_pid[pid]) to a
-    Film's arrays: per-pixel sum, sum of squares, count, the odd samples' sum and count
-    (film_odd (P, 4): sum in columns 0-2, count in 3; half_of_pid[pid] 1 for odd), and alpha = 1 - the path's
-    transparency L[pid, 3] (see integrator.paths.ALPHA). A non-finite path value (a bug, never
-    expected) is counted and added as 0, so one bad path cannot ruin an image but cannot
-    pass unnoticed either. film_aov (P, AOV_COUNT) gets the passes' columns L[pid, AOV_FIRST:],
-    (P, AOV_COUNT + LIGHT_AOV_COUNT) also the light passes' L[pid, LIGHT_AOV_FIRST:], or is
-    empty (0 rows) when no pass was requested."""
-    aovs = film_aov.shape[0] > 0
-    for i in range(n):
-        px = pixel_of_pid[i]
-        for c in range(3):
-            v = L[i, c]
-            if not np.isfinite(v):
-                film_nonfinite[0] += 1
-                v = 0.0
-            film_sum[px, c] += v
-            film_sq[px, c] += v * v
-            if half_of_pid[i]:
-                film_odd[px, c] += v
-        film_n[px] += 1
-        film_odd[px, 3] += half_of_pid[i]
-        film_alpha[px] += 1.0 - L[i, 3]
-        if aovs:
-            for c in range(AOV_COUNT):
-                film_aov[px, c] += L[i, AOV_FIRST + c]
-            for c in range(film_aov.shape[1] - AOV_COUNT):
-                film_aov[px, AOV_COUNT + c] += L[i, LIGHT_AOV_FIRST + c]
 
 
 def box_mean(image: np.ndarray, radius: int) -> np.ndarray:

@@ -5,7 +5,7 @@ HAZE_TEST_ADDON=clone the checkout's add-on linked into the user's add-on folder
 the fog box, disables and enables it, renders again, then loads factory settings, enables it
 and renders a third time, and once more after importing the add-on and the renderer afresh
 (new named-tuple classes). Numba's event API records every compile. The kernel cache is a
-copy of the shared warm test cache with one small kernel (film.splat) taken out, so the
+copy of the shared warm test cache with one small kernel (integrator.splat) taken out, so the
 first F12 really compiles something and must say so in the render stats; the later ones
 must compile nothing and say nothing.
 """
@@ -112,9 +112,9 @@ COMPILING = "Haze | Compiling kernels (first run only)…"
 
 
 def partly_cold_cache(root: Path) -> Path:
-    """A copy of the shared warm cache without film.splat: the first F12 compiles a little."""
+    """A copy of the shared warm cache without integrator.splat: the first F12 compiles a little."""
     shutil.copytree(shared_numba_cache(), root, symlinks=True)
-    for index in root.glob("kernels-*/film.splat-*"):
+    for index in root.glob("kernels-*/integrator/splat.splat-*"):
         index.unlink()
     return root
 

@@ -4,7 +4,7 @@ textured emission, Alpha and IOR.
 * A textured emitter: an Emission shader whose Color is a Checker (two colours that differ
   per channel) lights a wall and a floor. Camera rays see the checker directly; the wall is
   lit through light sampling, which must use the radiance the program gives at the light
-  point (renderer.shading.shadows), not the emitter's table value (1 per channel).
+  point (renderer.integrator.program_stage), not the emitter's table value (1 per channel).
 * An alpha-textured leaf: a Principled BSDF whose Alpha is a Checker mapped to 0.15..0.85,
   over a floor whose Principled IOR is a Checker mapped to 1.1..2.2 (single-scatter GGX,
   roughness 0.3), under a sun: camera rays see through the leaf, and shadow rays from the

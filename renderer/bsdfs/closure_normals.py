@@ -2,7 +2,7 @@
 weighs it, as Cycles gives them to its closures.
 
 A surface is bumped where a program sets the shading normal (Normal Map or Bump into a BSDF's
-Normal; renderer.shading.stage). Cycles then gives
+Normal; renderer.shading.apply). Cycles then gives
   * diffuse closures (Diffuse BSDF, the Principled base) the program's normal N as it is
     (svm/closure.h: `bsdf->N = N`), and weighs them by the whole bump_shadowing_term
     (closure/bsdf.h): 0 for a direction on the wrong side of the mesh's own smooth normal for

@@ -19,11 +19,14 @@ from .paths import PATH_ACTIVE, PATH_DEAD, store3
 
 
 @kernel
-def start_paths(ps, pixel_of_pid, half_of_pid, cam, width, rows, first_row, seed, first, n, sample_base,
-                init_stack):
-    """Camera rays for linear sample indices first .. first + n - 1 of a pass over a tile,
-    into rows 0..n-1 (row i owns radiance slot i); pixel_of_pid gets the tile's pixel,
-    half_of_pid the sample's half (kernels.rng.SAMPLE_HALVES: 1 for odd samples)."""
+def start_paths(n, first, tile, ps, slots, cam, init_stack):
+    """Camera rays for linear sample indices first .. first + n - 1 of a pass over a tile
+    (records.Tile), into rows 0..n-1 (row i owns radiance slot i), each starting in the
+    media of init_stack; slots.pixel gets the tile's pixel, slots.half the sample's half
+    (kernels.rng.SAMPLE_HALVES: 1 for odd samples)."""
+    width, rows, first_row = tile.width, tile.rows, tile.first_row
+    seed, sample_base = tile.seed, tile.sample_base
+    pixel_of_pid, half_of_pid = slots.pixel, slots.half
     raster = cam.raster
     npix = width * rows
     for i in range(n):

@@ -5,7 +5,7 @@ Per path in a medium: the medium's emission, the decoupled next-event vertex (a 
 the segment toward a light point, as Cycles), the path's own free flight and, where it
 scatters, the phase sample and Russian roulette. A homogeneous segment toward a triangle
 light goes to the SIMD batch (nee_batch) instead: shade_media records it there and
-_flush_nee_batch writes back the shadow rays and path states of a full batch. Every other
+flush_nee_batch writes back the shadow rays and path states of a full batch. Every other
 segment (grids, overlapping media, other lights, the last bounce) runs the scalar path
 here, drawing the same random numbers (dims.SEG_*).
 
@@ -127,7 +127,7 @@ def _volume_emission_passes(L, pid, depth, beta, le):
 
 
 @kernel
-def _flush_nee_batch(count, nb, ps, cfg, sh, s, L):
+def flush_nee_batch(count, nb, ps, cfg, sh, s, L):
     """Run the batched homogeneous segments 0..count-1 (nee_batch, SIMD across paths): write
     the shadow rays of next-event connections that carry light from index s, and each
     path's new state (and the light passes' category in L). Returns the new s."""
@@ -163,18 +163,21 @@ def _flush_nee_batch(count, nb, ps, cfg, sh, s, L):
 
 
 @kernel
-def shade_media(n, ps, prim, lt, env, md, cfg, L, sh, nb, grid_md):
+def shade_media(n, batch, hits, scene, env, md, cfg, nb, grid_md):
     """The participating media along each live path's segment [0, hit): emission, the
     next-event vertex, free-flight sampling. A path that scatters gets its next ray here
     (PATH_SCATTERED); one that reaches the segment's end goes on to shade_surface
     (PATH_ACTIVE). Returns the number of shadow rays written (from 0). grid_md: md when the
     scene has grid media, None otherwise (then no grid tracker is compiled). env: the
-    environment map's tables, None for a constant world."""
+    environment map's tables, None for a constant world. nb: the SIMD batch's arrays
+    (nee_batch.NeeBatch)."""
+    ps, sh, L = batch.paths, batch.shadows, batch.L
+    prim, lt = hits.prim, scene.lights
     max_bounces = cfg[CFG_MAX_BOUNCES]
     sampling = cfg[CFG_SAMPLING]
     uniform_channel = cfg[CFG_UNIFORM_CHANNEL] != 0
     # int64, not the literal 0: numba compiles a callee once per argument type it meets while
-    # typing, so a literal would compile _flush_nee_batch (and the SIMD batch) twice over.
+    # typing, so a literal would compile flush_nee_batch (and the SIMD batch) twice over.
     s = np.int64(0)
     cdf = lt.cdf  # what pick_light searches: L + 1 entries
     batched = cfg[CFG_NEE_BATCH] != 0
@@ -223,7 +226,7 @@ def shade_media(n, ps, prim, lt, env, md, cfg, L, sh, nb, grid_md):
                                  phase_g(md, stack[0]), use_eq, depth + 1 >= cfg[CFG_RR_DEPTH])
                 queued += 1
                 if queued == nee_batch.CHUNK:
-                    s = _flush_nee_batch(queued, nb, ps, cfg, sh, s, L)
+                    s = flush_nee_batch(queued, nb, ps, cfg, sh, s, L)
                     queued = np.int64(0)
                 continue
             lp = light_point(lt, light, hashed_uniform(key, dim + 1), hashed_uniform(key, dim + 2))
@@ -276,5 +279,5 @@ def shade_media(n, ps, prim, lt, env, md, cfg, L, sh, nb, grid_md):
         ps.alive[i] = PATH_SCATTERED if alive else PATH_DEAD
         ps.dim[i] = dim
     if queued > 0:
-        s = _flush_nee_batch(queued, nb, ps, cfg, sh, s, L)
+        s = flush_nee_batch(queued, nb, ps, cfg, sh, s, L)
     return s

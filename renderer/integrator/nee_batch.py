@@ -15,7 +15,7 @@ branch-free form of its concept, kept beside the scalar form in media/homogeneou
 media/equiangular.py, media/nee.py, media/spectral.py and lights/sample.py. The random
 numbers are computed inside the loops from the key and the dimension layout in dims.py, so
 the scalar path in media_stage.py, which does the same maths, draws the same ones;
-tests/test_nee_batch.py holds the two to 1e-11. media_stage._flush_nee_batch then writes
+tests/test_nee_batch.py holds the two to 1e-11. media_stage.flush_nee_batch then writes
 the shadow rays and the paths' new states.
 
 Which segments qualify (`qualifies`; shade_media checks the rest): a homogeneous stack with

@@ -63,13 +63,17 @@ def resolve_shadows(count, sh, occluded, L):
 
 
 @kernel
-def walk_shadows(count, sh, prim, thit, remaining, geo, mt, override, md, cfg, L, grid_md):
-    """One step of shadow rays that may pass interfaces. thit is the hit distance where
-    prim >= 0; remaining is each ray's length left to its light. A ray that reaches its end
-    adds its contribution; one that hits an opaque surface dies; one that hits an interface
-    or a transparent lobe continues past it with its medium stack updated. grid_md: as for
-    shadow_media. override[s] >= 0 (scenes with shader programs, renderer.shading.shadows;
-    empty otherwise): the row of mt to read ray s's hit material from."""
+def walk_shadows(count, batch, hits, remaining, scene, materials, md, cfg, grid_md):
+    """One step of the batch's shadow rays that may pass interfaces. hits.t is the hit
+    distance where hits.prim >= 0; remaining is each ray's length left to its light. A ray
+    that reaches its end adds its contribution; one that hits an opaque surface dies; one
+    that hits an interface or a transparent lobe continues past it with its medium stack
+    updated. grid_md: as for shadow_media. materials.override[s] >= 0 (scenes with shader
+    programs, program_stage.shadow_programs; empty otherwise): the row of materials.table
+    to read ray s's hit material from."""
+    sh, L = batch.shadows, batch.L
+    prim, thit = hits.prim, hits.t
+    geo, mt, override = scene.geometry, materials.table, materials.override
     has_media = cfg[CFG_HAS_MEDIA] != 0
     for s in range(count):
         o = load3(sh.o, s)

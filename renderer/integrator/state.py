@@ -1,4 +1,5 @@
-"""Structure-of-arrays state of a batch of paths, and of their shadow rays.
+"""Structure-of-arrays state of a batch of paths, and of their shadow rays, and the records
+the stages take them in (Batch, Slots).
 
 A path owns slot `pid` of the batch's radiance array for its whole life; its other state
 moves when the batch is compacted, so rows [0, n) are always the live paths and feed
@@ -65,6 +66,23 @@ class Shadows(NamedTuple):
     stack: np.ndarray
     alive: np.ndarray
     col: np.ndarray
+
+
+class Batch(NamedTuple):
+    """What the stages of a batch share and write: its paths, their shadow rays, and the
+    radiance array L (B, paths.RADIANCE columns, float64), row pid for the path of slot pid."""
+
+    paths: Paths
+    shadows: Shadows
+    L: np.ndarray
+
+
+class Slots(NamedTuple):
+    """Per radiance slot (B,) int32: pixel, the tile's pixel its path samples; half, 1 for an
+    odd sample (kernels.rng.SAMPLE_HALVES). Written by start_paths, read by splat."""
+
+    pixel: np.ndarray
+    half: np.ndarray
 
 
 def allocate_paths(n: int) -> Paths:

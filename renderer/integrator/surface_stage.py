@@ -80,17 +80,22 @@ _NO_BUMP = ((0.0, 0.0, 1.0), (0.0, 0.0, 1.0))  # `bump` of an unbumped surface (
 
 
 @kernel
-def shade_surface(n, ps, prim, bu, bv, geo, mt, override, program_out, lt, env, cfg, L, sh, s, cam, mist):
-    """Shade the closest hits of paths 0..n-1 that are PATH_ACTIVE (prim -1 = escaped;
+def shade_surface(n, batch, hits, scene, materials, env, cfg, s):
+    """Shade the closest hits of paths 0..n-1 that are PATH_ACTIVE (hits.prim -1 = escaped;
     ps.tmax holds the hit distance): emission, next-event estimation, BSDF sampling, Russian
-    roulette. Writes new rays into ps, kills finished paths, appends shadow rays to sh from
-    index s. env: the environment map's tables, None for a constant world. cam (the camera
-    tuple) and mist (start, 1 / depth, falloff) serve the Mist pass. override[i] >= 0
-    (renderer.shading.stage, only in scenes with shader programs; empty otherwise) is the
-    row of mt to shade path i with instead of its triangle's material; program_out[i, 0:3]
-    scales the radiance of the emitter it hit and program_out[i, 3:6], when not zero, is its
-    shading normal (then the surface is bumped: its lobes have their own normals,
-    renderer.bsdfs.closure_normals). Returns the number of shadow rays written in all."""
+    roulette. Writes new rays into the batch's paths, kills finished paths, appends shadow
+    rays to its shadows from index s. env: the environment map's tables, None for a
+    constant world. The scene's camera and mist serve the Mist pass. materials.override[i]
+    >= 0 (program_stage, only in scenes with shader programs; empty otherwise) is the row of
+    materials.table to shade path i with instead of its triangle's material;
+    materials.out[i, 0:3] scales the radiance of the emitter it hit and out[i, 3:6], when
+    not zero, is its shading normal (then the surface is bumped: its lobes have their own
+    normals, renderer.bsdfs.closure_normals). Returns the number of shadow rays written in
+    all."""
+    ps, sh, L = batch.paths, batch.shadows, batch.L
+    prim, bu, bv = hits.prim, hits.bu, hits.bv
+    geo, lt, cam, mist = scene.geometry, scene.lights, scene.camera, scene.mist
+    mt, override, program_out = materials.table, materials.override, materials.out
     max_bounces = cfg[CFG_MAX_BOUNCES]
     sampling = cfg[CFG_SAMPLING]
     transparent = cfg[CFG_FILM_TRANSPARENT] != 0

@@ -9,7 +9,7 @@ import numpy as np
 
 from ..bsdfs.material import bsdf_eval, bsdf_sample
 from ..compile import MAX_STACK, CompiledScene
-from ..film import Film
+from ..film import Film, FilmSums
 from ..geometry import Intersector
 from ..kernels.warmup import KernelCall, warm_up
 from ..lights.environment import connect_light_env, escaped_radiance_env
@@ -17,13 +17,12 @@ from ..lights.sample import triangle_light_pdf
 from ..media.layout import dda_scratch
 from ..media.stack_phase import phase_eval, sample_phase
 from ..scene import IntegratorSettings
+from ..shading.apply import FIELD_OFFSETS, scratch_table
 from ..shading.interpreter import program_entry
-from ..shading.shadows import emitter_programs, probe_rays, shadow_programs
-from ..shading.stage import FIELD_OFFSETS, scratch_table, shade_programs
 from . import stages as K
 from .aovs import aov_surface
 from .config import CFG_AOVS, CFG_LIGHT_AOVS, make_config
-from .media_stage import _flush_nee_batch
+from .media_stage import flush_nee_batch
 from .nee_batch import NeeBatch
 from .paths import (
     AOV_COUNT,
@@ -34,7 +33,10 @@ from .paths import (
     L_COLUMNS_LIGHT_AOV,
     LIGHT_AOV_COUNT,
 )
-from .state import allocate_paths, allocate_shadows
+from .program_stage import probe_rays
+from .records import Hits, Materials, Programs, SceneArrays, Tile
+from .stages import STAGES, Call
+from .state import Batch, Slots, allocate_paths, allocate_shadows
 
 
 def camera_medium_stack(cs: CompiledScene, isect: Intersector) -> np.ndarray:
@@ -82,9 +84,9 @@ class Tracer:
         self.cs = cs
         self.settings = settings
         self.isect = Intersector(cs.vertices, cs.indices)
-        self.batch = int(settings.batch_size)
-        self.ps = allocate_paths(self.batch)
-        self.sh = allocate_shadows(self.batch)
+        self.batch_size = int(settings.batch_size)
+        self.ps = allocate_paths(self.batch_size)
+        self.sh = allocate_shadows(self.batch_size)
         self.nb = NeeBatch().arrays() if cs.has_media else None
         self.md = cs.media.with_scratch(dda_scratch())  # the scene's media tables + our DDA scratch
         # The same again where the kernels may meet grid media, None when the scene has none:
@@ -95,82 +97,60 @@ class Tracer:
         # RGB and transparency, and the render passes' columns when they were asked for.
         light = bool(self.cfg[CFG_LIGHT_AOVS])
         columns = L_COLUMNS_LIGHT_AOV if light else L_COLUMNS_AOV if self.aovs else L_COLUMNS
-        self.L = np.zeros((self.batch, columns), np.float64)
+        self.L = np.zeros((self.batch_size, columns), np.float64)
+        self.batch = Batch(self.ps, self.sh, self.L)
         self.aov_columns = AOV_COUNT + (LIGHT_AOV_COUNT if light else 0)  # the film's pass sums
-        self.no_aov = np.zeros((0, AOV_COUNT), np.float64)  # splat's film_aov without passes
-        self.mist = np.array(cs.mist, np.float64)  # the Mist pass's start, 1 / depth, falloff
-        self.pixel_of_pid = np.zeros(self.batch, np.int32)
-        self.half_of_pid = np.zeros(self.batch, np.int32)
-        self.remaining = np.zeros(2 * self.batch, np.float32)
-        self.lt = cs.lights
+        self.no_aov = np.zeros((0, AOV_COUNT), np.float64)  # the splat's sums.aov without passes
+        self.slots = Slots(np.zeros(self.batch_size, np.int32), np.zeros(self.batch_size, np.int32))
+        self.remaining = np.zeros(2 * self.batch_size, np.float32)
+        self.scene = SceneArrays(cs.geometry, cs.lights, cs.camera, np.array(cs.mist, np.float64))
+        # Embree's answers, copied into arrays of our own: the kernels' records stay the same
+        # objects from call to call, so each call reuses its compiled entry point
+        # (renderer.kernels.Kernel) instead of numba's dispatch on the records' types.
+        rows = 2 * self.batch_size
+        prim, bu, bv = np.full(rows, -1, np.int32), np.zeros(rows, np.float32), np.zeros(rows, np.float32)
+        self.path_hits = Hits(prim, bu, bv, self.ps.tmax)  # Embree writes the distance into tmax
+        self.shadow_hits = Hits(prim, bu, bv, np.zeros(rows, np.float32))
         self.init_stack = camera_medium_stack(cs, self.isect)
         self._shader_programs(cs)
+        self.runs = {name for name, stage in STAGES.items() if stage.runs(cs)}
         self.stats = {"rays": 0, "shadow_rays": 0, "embree_s": 0.0}
         self.compile_seconds = warm_up(self.kernel_calls(), on_compile)
 
     def _shader_programs(self, cs: CompiledScene) -> None:
-        """Scratch for the shader program stage (renderer.shading.stage), only in scenes
+        """Scratch for the shader program stages (integrator.program_stage), only in scenes
         with programs; otherwise the surface stage gets an empty override and the scene's
-        own material table. Shadow rays get a table of their own (renderer.shading.shadows)."""
-        self.mt = self.shadow_mt = cs.materials
-        self.override = self.shadow_override = np.zeros(0, np.int32)
-        self.program_out = np.zeros((0, 6), np.float32)
-        self.regs = np.zeros(1, np.float32)
-        self.entry = 0  # the interpreter's address (interpreter.program_entry), in scenes with programs
-        self.max_lobes = 0
+        own material table. Shadow rays get a table of their own."""
+        empty = np.zeros((0, 6), np.float32)
+        self.materials = self.shadow_materials = Materials(cs.materials, np.zeros(0, np.int32), empty)
+        self.programs = None
         if cs.shading is not None:
-            self.max_lobes = cs.shading.max_lobes
-            self.mt = scratch_table(cs.materials, self.batch, self.max_lobes)
-            self.override = np.full(self.batch, -1, np.int32)
-            self.program_out = np.zeros((self.batch, 6), np.float32)
-            self.regs = np.zeros(cs.shading.max_registers, np.float32)
-            self.entry = program_entry(cs.shading.arrays, self.regs)
+            max_lobes = cs.shading.max_lobes
+            st, regs = cs.shading.arrays, np.zeros(cs.shading.max_registers, np.float32)
+            self.programs = Programs(st, regs, program_entry(st, regs), max_lobes, FIELD_OFFSETS)
+            self.materials = Materials(scratch_table(cs.materials, self.batch_size, max_lobes),
+                                       np.full(self.batch_size, -1, np.int32),
+                                       np.zeros((self.batch_size, 6), np.float32))
             shadows = self.sh.o.shape[0]
-            self.shadow_mt = scratch_table(cs.materials, shadows, self.max_lobes)
-            self.shadow_override = np.full(shadows, -1, np.int32)
+            self.shadow_materials = Materials(scratch_table(cs.materials, shadows, max_lobes),
+                                              np.full(shadows, -1, np.int32), empty)
+
+    def _run(self, name: str, **values):
+        """Call stage `name` with the tracer's records and this call's values (stages.STAGES)."""
+        return getattr(K, name)(*STAGES[name].args(self, Call(**values)))
 
     def kernel_calls(self) -> list[KernelCall]:
         """Every kernel call a batch of this scene makes, with arguments of the types it
-        passes (the hits and occlusion flags Embree returns are stood in for by arrays of
-        its types): what warm_up compiles before the first batch."""
-        cs, ps, sh, lt, cfg, L = self.cs, self.ps, self.sh, self.lt, self.cfg, self.L
-        prim, bu, bv = np.full(1, -1, np.int32), np.zeros(1, np.float32), np.zeros(1, np.float32)
-        calls: list[KernelCall] = self.subtree_calls() + [
-            (K.start_paths, (ps, self.pixel_of_pid, self.half_of_pid, cs.camera, cs.width, cs.height,
-                             0, 0, 0, 1, 0, self.init_stack)),
-            (K.shade_surface, (1, ps, prim, bu, bv, cs.geometry, self.mt, self.override, self.program_out,
-                               lt, cs.environment, cfg, L, sh, 0,
-                               cs.camera, self.mist)),
-            (K.compact_paths, (1, ps)),
-            (K.splat, (1, L, self.pixel_of_pid, self.half_of_pid, np.zeros((1, 3), np.float64),
-                       np.zeros((1, 3), np.float64), np.zeros(1, np.int64), np.zeros((1, 4), np.float64),
-                       np.zeros(1, np.int64), np.zeros(1, np.float64), self.no_aov)),
-        ]
-        if cs.shading is not None:
-            st, lobes = cs.shading.arrays, self.max_lobes
-            calls.append((shade_programs, (1, ps, prim, bu, bv, cs.geometry, st, self.mt, self.regs,
-                                           self.entry, self.override, self.program_out, lobes,
-                                           FIELD_OFFSETS)))
-            if cs.shading.emission:
-                calls.append((emitter_programs, (1, sh, prim, bu, bv, cs.geometry, st, self.shadow_mt,
-                                                 self.regs, self.entry, 1, lobes, FIELD_OFFSETS)))
-            if cs.needs_shadow_walk:
-                calls.append((shadow_programs, (1, sh, prim, bu, bv, cs.geometry, st, self.shadow_mt,
-                                                self.regs, self.entry, self.shadow_override, lobes,
-                                                FIELD_OFFSETS)))
-        if cs.has_media:
-            calls.append((K.shade_media, (1, ps, prim, lt, cs.environment, self.md, cfg, L, sh, self.nb,
-                                          self.grid_md)))
-        if cs.needs_shadow_walk:
-            calls.append((K.walk_shadows, (1, sh, prim, np.zeros(1, np.float32), self.remaining,
-                                           cs.geometry, self.shadow_mt, self.shadow_override, self.md, cfg,
-                                           L, self.grid_md)))
-            calls.append((K.compact_shadows, (1, sh, self.remaining)))
-        else:
-            calls.append((K.resolve_shadows, (1, sh, np.zeros(1, np.bool_), L)))
-            if cs.has_media:
-                calls.append((K.shadow_media, (1, sh, self.md, cfg, self.grid_md)))
-        return calls
+        passes (stages.STAGES with stand-in values of the types a batch passes): what
+        warm_up compiles before the first batch."""
+        cs = self.cs
+        one = np.zeros((1, 3), np.float64)
+        stand_in = Call(n=1, hits=self.path_hits, s=0, occluded=np.zeros(1, np.bool_), first=0,
+                        tile=Tile(cs.width, cs.height, 0, 0, 0),
+                        sums=FilmSums(one, one.copy(), np.zeros(1, np.int64), np.zeros((1, 4), np.float64),
+                                      np.zeros(1, np.int64), np.zeros(1, np.float64), self.no_aov))
+        return self.subtree_calls() + [(getattr(K, name), stage.args(self, stand_in))
+                                       for name, stage in STAGES.items() if name in self.runs]
 
     def subtree_calls(self) -> list[KernelCall]:
         """The largest helpers inside shade_surface and shade_media, with the argument types
@@ -183,20 +163,21 @@ class Tracer:
         while the first compiles others; the stage kernel then loads them. The types must be
         exactly the stage's (tests/test_kernel_cache.py checks that no helper compiles
         twice), or the helper would compile once more for the stage's own types."""
-        cs, lt, v = self.cs, self.lt, (0.0, 0.0, 1.0)
+        cs, lt, v = self.cs, self.scene.lights, (0.0, 0.0, 1.0)
+        mt = self.materials.table
         m, light, tri = np.int32(0), 0, np.int32(0)
         calls: list[KernelCall] = [
-            (bsdf_eval, (self.mt, m, True, v, v)),
-            (bsdf_sample, (self.mt, m, True, v, 0.5, 0.5, 0.5, 0.5)),
+            (bsdf_eval, (mt, m, True, v, v)),
+            (bsdf_sample, (mt, m, True, v, 0.5, 0.5, 0.5, 0.5)),
             # Compiled into shade_surface with or without passes (L's type is the same).
-            (aov_surface, (self.L, m, self.mt, m, True, v, v, 0.5, m, v, cs.camera, self.mist)),
+            (aov_surface, (self.L, m, mt, m, True, v, v, 0.5, m, v, cs.camera, self.scene.mist)),
             (connect_light_env, (lt, cs.environment, light, v, v, 0.5, 0.5)),
             (triangle_light_pdf, (lt, tri, v, v, 1.0)),
-            (escaped_radiance_env, (lt, light, cs.lights.sun_rows, cs.environment, v)),
+            (escaped_radiance_env, (lt, light, lt.sun_rows, cs.environment, v)),
         ]
         if cs.has_media:
             stack = self.init_stack
-            calls = [(_flush_nee_batch, (0, self.nb, self.ps, self.cfg, self.sh, 0, self.L)),
+            calls = [(flush_nee_batch, (0, self.nb, self.ps, self.cfg, self.sh, 0, self.L)),
                      (phase_eval, (self.md, stack, v, v, v)),
                      (sample_phase, (self.md, stack, v, v, 0.5, 0.5, 0.5))] + calls
         return calls
@@ -208,39 +189,37 @@ class Tracer:
         assert film.width == cs.width and 0 <= film.first_row and film.first_row + film.height <= cs.height, \
             "a film outside the rendered window"
         total = film.width * film.height * spp
-        for first in range(0, total, self.batch):
-            n = min(self.batch, total - first)
-            self._trace_batch(film, first, n, sample_base, seed)
+        tile = Tile(int(film.width), int(film.height), int(film.first_row), int(seed), int(sample_base))
+        sums = film.sums(film.ensure_aov(self.aov_columns) if self.aovs else self.no_aov)
+        for first in range(0, total, self.batch_size):
+            n = min(self.batch_size, total - first)
+            self._trace_batch(tile, sums, first, n)
 
-    def _trace_batch(self, film: Film, first: int, n: int, sample_base: int, seed: int) -> None:
-        cs, ps, sh = self.cs, self.ps, self.sh
+    def _trace_batch(self, tile: Tile, sums: FilmSums, first: int, n: int) -> None:
+        ps = self.ps
         self.L[:n] = 0.0
-        K.start_paths(ps, self.pixel_of_pid, self.half_of_pid, cs.camera, film.width, film.height,
-                      film.first_row, seed, first, n, sample_base, self.init_stack)
+        self._run("start_paths", n=n, first=first, tile=tile)
         if self.aovs:
-            self._start_aovs(first, n, sample_base, film.width * film.height)
+            self._start_aovs(first, n, tile.sample_base, tile.width * tile.rows)
         live = n
         while live > 0:
-            prim, bu, bv = self.isect.intersect(ps.o[:live], ps.d[:live], ps.tmax[:live])
+            hits = self._intersect(self.path_hits, ps.o[:live], ps.d[:live], ps.tmax[:live])
             self.stats["rays"] += live
-            count = 0
-            if cs.has_media:
-                count = K.shade_media(live, ps, prim, self.lt, cs.environment, self.md, self.cfg, self.L, sh,
-                                      self.nb, self.grid_md)
-            if cs.shading is not None:
-                shade_programs(live, ps, prim, bu, bv, cs.geometry, cs.shading.arrays, self.mt, self.regs,
-                               self.entry, self.override, self.program_out, self.max_lobes, FIELD_OFFSETS)
-            count = K.shade_surface(live, ps, prim, bu, bv, cs.geometry, self.mt, self.override,
-                                    self.program_out, self.lt,
-                                    cs.environment, self.cfg, self.L,
-                                    sh, count,
-                                    cs.camera, self.mist)
+            count = self._run("shade_media", n=live, hits=hits) if "shade_media" in self.runs else 0
+            if "shade_programs" in self.runs:
+                self._run("shade_programs", n=live, hits=hits)
+            count = self._run("shade_surface", n=live, hits=hits, s=count)
             if count:
                 self._shadows(count)
-            live = K.compact_paths(live, ps)
-        film_aov = film.ensure_aov(self.aov_columns) if self.aovs else self.no_aov
-        K.splat(n, self.L, self.pixel_of_pid, self.half_of_pid, film.sum, film.sq, film.n, film.odd,
-                film.nonfinite, film.alpha, film_aov)
+            live = self._run("compact_paths", n=live)
+        self._run("splat", n=n, sums=sums)
+
+    def _intersect(self, hits: Hits, o: np.ndarray, d: np.ndarray, t: np.ndarray) -> Hits:
+        """The closest hits of rays (o, d) up to t (n,) (overwritten with the distance), in
+        rows 0..n-1 of `hits`."""
+        n = o.shape[0]
+        hits.prim[:n], hits.bu[:n], hits.bv[:n] = self.isect.intersect(o, d, t)
+        return hits
 
     def _start_aovs(self, first: int, n: int, sample_base: int, pixels: int) -> None:
         """The passes' per-path scratch: feature throughput 1, and which paths are their
@@ -252,28 +231,25 @@ class Tracer:
         L[:n, AOV_SAMPLE0] = sample == 0
 
     def _shadows(self, count: int) -> None:
-        sh, cs = self.sh, self.cs
+        sh = self.sh
         self.stats["shadow_rays"] += count
-        if cs.shading is not None and cs.shading.emission:
-            # Textured emitters: their radiance at each ray's light point (shading.shadows).
-            prim, bu, bv = self.isect.intersect(*probe_rays(sh, count))
-            emitter_programs(count, sh, prim, bu, bv, cs.geometry, cs.shading.arrays, self.shadow_mt,
-                             self.regs, self.entry, self.shadow_override.shape[0], self.max_lobes,
-                             FIELD_OFFSETS)
+        if "emitter_programs" in self.runs:
+            # Textured emitters: their radiance at each ray's light point (program_stage).
+            hits = self._intersect(self.shadow_hits, *probe_rays(sh, count))
+            self._run("emitter_programs", n=count, hits=hits)
         if not self.cs.needs_shadow_walk:
-            if self.cs.has_media:
-                K.shadow_media(count, sh, self.md, self.cfg, self.grid_md)
+            if "shadow_media" in self.runs:
+                self._run("shadow_media", n=count)
             occluded = self.isect.occluded(sh.o[:count], sh.d[:count], sh.tmax[:count])
-            K.resolve_shadows(count, sh, occluded, self.L)
+            self._run("resolve_shadows", n=count, occluded=occluded)
             return
         remaining = self.remaining
         remaining[:count] = sh.tmax[:count]
         while count > 0:
-            thit = remaining[:count].copy()
-            prim, bu, bv = self.isect.intersect(sh.o[:count], sh.d[:count], thit)
-            if cs.shading is not None:
-                shadow_programs(count, sh, prim, bu, bv, cs.geometry, cs.shading.arrays, self.shadow_mt,
-                                self.regs, self.entry, self.shadow_override, self.max_lobes, FIELD_OFFSETS)
-            K.walk_shadows(count, sh, prim, thit, remaining, cs.geometry, self.shadow_mt,
-                           self.shadow_override, self.md, self.cfg, self.L, self.grid_md)
-            count = K.compact_shadows(count, sh, remaining)
+            t = self.shadow_hits.t
+            t[:count] = remaining[:count]
+            hits = self._intersect(self.shadow_hits, sh.o[:count], sh.d[:count], t[:count])
+            if "shadow_programs" in self.runs:
+                self._run("shadow_programs", n=count, hits=hits)
+            self._run("walk_shadows", n=count, hits=hits)
+            count = self._run("compact_shadows", n=count)

@@ -223,7 +223,7 @@ def run_program(st, m, regs, p, b0, b1, b2, x, n, wi, back):  # noqa: C901 - the
 def program_entry(st: tuple, regs: np.ndarray) -> int:
     """This process's address of run_program compiled for the shading tuple `st` and the
     register file `regs` (renderer.kernels.native_call): the kernels that run programs
-    (shading.stage, shading.shadows, media.procedural) call it through this address with
+    (integrator.program_stage through shading.apply, media.procedural) call it through this address with
     call_native, so the interpreter is compiled once rather than again inside each of them.
     The arguments after regs have the types those callers pass: int64 m and p, float64
     barycentrics, 3-tuples of float64 for x, n and wi, bool back."""

@@ -12,7 +12,7 @@ a field of one of the material's lobes (renderer.bsdfs.layout.LOBE), either sett
 field (BIND_SET) or scaling it by one scalar register (BIND_SCALE, Mix Shader factors).
 The field "emission" names no lobe (its lobe is -1): its three registers are the surface's
 emitted radiance, which then replaces Material.emission (that value only sets the
-emitter's share of light sampling; see renderer.shading.shadows). The field "normal" names
+emitter's share of light sampling; see renderer.integrator.program_stage). The field "normal" names
 no lobe either: its three registers are the shading normal of all the material's lobes (the
 Normal input of a BSDF).
 """

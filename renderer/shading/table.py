@@ -35,7 +35,7 @@ class ShadingTables:
     arrays: tuple
     max_registers: int  # the largest register file of any program
     max_lobes: int  # lobes of the largest material with a program
-    emission: bool = False  # some program drives its surface's emission (shading.shadows)
+    emission: bool = False  # some program drives its surface's emission (integrator.program_stage)
 
 
 def attribute_width(name: str) -> int:

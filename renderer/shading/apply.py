@@ -1,22 +1,19 @@
-"""The shader program stage: before the surface stage, every path that hit a material
-with a program runs it, and gets a private copy of the material's lobes with the program's
-results written into the bound fields (program.py). The surface stage then shades row
-`override[i]` of the extended material table instead of the triangle's material.
-
-Only scenes with a program run this kernel (the driver skips it otherwise), so constant
-materials keep their path and compile nothing for it.
+"""A shader program applied at a hit: run it, and write a private copy of the material's
+lobes with the program's results in the bound fields (program.py) into a scratch material.
+The program stages (renderer.integrator.program_stage) call apply_program for every path or
+shadow ray that hit a material with a program; the surface stage then shades the scratch
+material instead of the triangle's.
 
 The extended table is the scene's (mats, lobes) followed by one scratch material per path
 slot and `max_lobes` scratch lobes per slot (scratch_table).
 
-A program may also drive the surface's emission (binding field "emission"): the stage
-writes the path's emitted radiance into out[i, 0:3], which the surface stage uses instead
-of the light table's value. The table holds Material.emission = 1 for such an emitter
-(radiance 1 per channel: it only weighs the emitter in light sampling), so out[i, 0:3] is
-the factor to scale the table's radiance by (renderer.shading.shadows does the same at
-light sampling points). A program driving the shading normal (field "normal") writes it,
-on the front side of the geometric normal as the surface stage keeps it, into
-out[i, 3:6] (zero: the mesh's own normal).
+A program may also drive the surface's emission (binding field "emission"): apply_program
+returns the emitted radiance, which the surface stage uses instead of the light table's
+value. The table holds Material.emission = 1 for such an emitter (radiance 1 per channel: it
+only weighs the emitter in light sampling), so the program's radiance is the factor to scale
+the table's radiance by (the program stage does the same at light sampling points). A
+program driving the shading normal (field "normal") returns it on the front side of the
+geometric normal, as the surface stage keeps it (zero: the mesh's own normal).
 """
 
 import math
@@ -24,13 +21,12 @@ import math
 import numpy as np
 
 from renderer.bsdfs.layout import LOBE, M_COUNT, M_FIRST, MATERIAL
-from renderer.integrator.paths import PATH_ACTIVE, load3
-from renderer.kernels import inline_kernel, kernel
+from renderer.kernels import inline_kernel
 from renderer.kernels.native_call import call_native
 from renderer.kernels.vecmath import add, dot, madd, neg, normalize, scale
 
 from .program import BIND, BIND_SCALE
-from .table import P_BIND, P_NBIND, P_NCODE
+from .table import P_BIND, P_NBIND
 
 B_LOBE, B_FIELD, B_WIDTH, B_REG, B_MODE = (BIND.offset(f) for f in ("lobe", "field", "width", "reg", "mode"))
 # Offsets of program.BIND_FIELDS in a lobe row, and the valid range of each.
@@ -48,6 +44,13 @@ def scratch_table(mt: tuple, batch: int, max_lobes: int) -> tuple:
     ext_lobes = np.zeros((lobes.shape[0] + batch * max_lobes, LOBE.size), np.float32)
     ext_lobes[:lobes.shape[0]] = lobes
     return ext_mats, ext_lobes
+
+
+@inline_kernel
+def load3(a, i):
+    """Row i of an (n, 3) array as a float64 3-tuple (as integrator.paths.load3, which
+    shading/ does not import: the integrator imports shading)."""
+    return (np.float64(a[i, 0]), np.float64(a[i, 1]), np.float64(a[i, 2]))
 
 
 @inline_kernel
@@ -74,31 +77,6 @@ def _shading_normal(geo, p, b0, b1, b2, ng):
     n = normalize(add(add(scale(load3(geo.sn[p], 0), b0), scale(load3(geo.sn[p], 1), b1)),
                       scale(load3(geo.sn[p], 2), b2)))
     return neg(n) if dot(n, ng) < 0.0 else n
-
-
-@kernel
-def shade_programs(n, ps, prim, bu, bv, geo, st, mt, regs, entry, override, out, max_lobes, field_offsets):
-    """Run the programs of paths 0..n-1 that are PATH_ACTIVE and hit a material with one;
-    override[i] = their scratch material, -1 for the others; out[i] (n, 6) the factor on
-    the light table's radiance of the emitter hit (1 unless the program drives emission)
-    and the shading normal (0 unless the program drives it)."""
-    mats, lobes = mt
-    progs = st[0]
-    n_mats = mats.shape[0] - override.shape[0]
-    n_lobes = lobes.shape[0] - override.shape[0] * max_lobes
-    for i in range(n):
-        override[i] = -1
-        p = prim[i]
-        if ps.alive[i] != PATH_ACTIVE or p < 0:
-            continue
-        m = geo.material[p]
-        if progs[m, P_NCODE] < 0:
-            continue
-        e, sn = apply_program(geo, st, mt, regs, entry, p, m, float(bu[i]), float(bv[i]), load3(ps.d, i),
-                              n_mats + i, n_lobes + i * max_lobes, field_offsets)
-        out[i, 0], out[i, 1], out[i, 2] = e[0], e[1], e[2]
-        out[i, 3], out[i, 4], out[i, 5] = sn[0], sn[1], sn[2]
-        override[i] = n_mats + i
 
 
 @inline_kernel
