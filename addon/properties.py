@@ -30,6 +30,7 @@ class HazeRenderSettings(bpy.types.PropertyGroup):
         description="Samples per pixel to render",
         default=64,
         min=1,
+        max=1 << 24,  # renderer.validate.scene.MAX_SPP
         soft_max=4096,
     )
     time_limit: FloatProperty(
@@ -57,6 +58,7 @@ class HazeRenderSettings(bpy.types.PropertyGroup):
         "0 = direct light only",
         default=8,
         min=0,
+        max=1024,  # renderer.validate.scene.MAX_BOUNCES, Cycles' own limit
         soft_max=64,
     )
     seed: IntProperty(

@@ -177,7 +177,9 @@ def main():
             panels[panel.__name__] = {"haze": "HAZE" in engines, "parent": getattr(panel, "bl_parent_id", "")}
     return {"panels": panels, "drawn": draw_haze_panels(ui),
             "panorama_ui": sorted(getattr(ui, "PANORAMA_SETTINGS", ())),
-            "panorama_export": sorted(camera.PANORAMA_TYPES)}
+            "panorama_export": sorted(camera.PANORAMA_TYPES),
+            "limits": {name: bpy.context.scene.haze.bl_rna.properties[name].hard_max
+                       for name in ("samples", "max_bounces")}}
 '''
 
 
@@ -229,3 +231,10 @@ def test_haze_panels_draw_blender_properties(panels):
     assert light <= set(drawn["HAZE_DATA_PT_light"])
     panorama = {"panorama_type", "fisheye_fov", "fisheye_lens", "latitude_min"}
     assert panorama <= set(drawn["HAZE_DATA_PT_panorama"])
+
+
+def test_settings_stop_where_the_renderer_refuses(panels):
+    """A value the validator would refuse at F12 cannot be typed into the panel."""
+    from renderer.validate.scene import MAX_BOUNCES, MAX_SPP
+
+    assert panels["limits"] == {"samples": MAX_SPP, "max_bounces": MAX_BOUNCES}
