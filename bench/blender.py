@@ -6,7 +6,7 @@ measurement instead of the whole run, and each run gets fresh HOME / BLENDER_USE
 folders so nothing of the developer's own Blender setup is read or changed. The scripts run
 with tests/ and examples/ on their sys.path (not the repository root: Haze, and with it
 `renderer`, comes from the installed extension), so they import the Blender-side helpers of
-tests/helpers/bpy_helpers.py (enable_addon, configure_cycles, render_exr, scene builders).
+examples/bpy_helpers.py (enable_addon, configure_cycles, render_exr, scene builders).
 """
 
 from __future__ import annotations
@@ -41,7 +41,7 @@ for _path in {paths!r}:
         sys.path.insert(0, _path)
 """
 
-ADDON_MODE_ENV = "HAZE_TEST_ADDON"  # tests/helpers/bpy_helpers.py reads it on the Blender side
+ADDON_MODE_ENV = "HAZE_TEST_ADDON"  # examples/bpy_helpers.py reads it on the Blender side
 
 EPILOGUE = """
 if __name__ == "__main__":
@@ -134,13 +134,13 @@ def run_blender(body: str, tmp: Path, *, timeout: float = 900.0, numba_cache: Pa
     dev_paths: the run may enable Haze (bpy_helpers.enable_addon) and import tests/ and
     examples/; Haze is the installed extension (copied into the run's user folder, the
     process isolated from the venv's copies of the bundled packages) unless addon_mode() is
-    "clone", where the repository goes on sys.path. dev_paths=False: only tests/ and `site`,
-    for tests that install a zip themselves. site: run isolated (python -S) with only this
+    "clone", where the repository goes on sys.path. dev_paths=False: only tests/, examples/
+    and `site`, for tests that install a zip themselves. site: run isolated (python -S) with only this
     site folder for packages. env: extra environment variables.
     """
     tmp.mkdir(parents=True, exist_ok=True)
     mode = addon_mode() if dev_paths else "none"
-    paths = [str(TESTS), str(EXAMPLES)] if dev_paths else [str(TESTS)]
+    paths = [str(TESTS), str(EXAMPLES)]  # the tests' helpers, and examples/bpy_helpers.py
     if mode == "clone":
         paths.append(str(REPO))
     if mode == "installed" and site is None:

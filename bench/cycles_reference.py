@@ -4,7 +4,7 @@
 
 The scene (renderer.scenefile format) is rebuilt in bpy with the same world coordinates the
 add-on exports (Blender's world space is the renderer's), then rendered once per (seed,
-sample count) with Cycles set up as an unbiased reference (tests/helpers/bpy_helpers.configure_cycles:
+sample count) with Cycles set up as an unbiased reference (examples/bpy_helpers.configure_cycles:
 box filter of width 1, no denoising, clamping or adaptive sampling; every bounce limit equal
 to the scene's max_bounces). Each render writes OUT_DIR/cycles_s{seed}_n{samples}.exr; the
 wall time of each render call (scene sync, BVH build, sampling, EXR write) goes to
@@ -25,11 +25,10 @@ voxel values trilinearly. Haze clamps to the edge voxels where Cycles fades to 0
 outermost half voxel, so grids must be 0 on their faces (the paper's generator is).
 
 The command re-runs itself in a private Blender environment (bench.blender's); that re-run
-is the Blender side, and puts tests/ and examples/ on its own sys.path for the Blender-side
-helpers of tests/helpers/bpy_helpers.py (configure_cycles, render_exr, new_object: the tests' Cycles
-set-up) and examples/blender_cornell.py, as run_blender's scripts do. The process that
-starts it (a user's `python -m bench cycles_reference`, or bench/convergence.py) imports
-nothing from tests/.
+is the Blender side, and puts examples/ on its own sys.path for the Blender-side helpers of
+examples/bpy_helpers.py (configure_cycles, render_exr, new_object: the tests' Cycles set-up)
+and examples/blender_cornell.py, as run_blender's scripts do. Nothing here imports from
+tests/.
 """
 
 from __future__ import annotations
@@ -60,10 +59,9 @@ def command(argv: list[str]) -> list[str]:
 def isolate_blender(argv: list[str]) -> None:
     """Re-run the command with private HOME / Blender user folders (bench.blender's
     environment), so nothing of the developer's own Blender setup is read or changed; in the
-    re-run (the Blender side), put tests/ and examples/ on sys.path for their Blender-side
-    helpers."""
+    re-run (the Blender side), put examples/ on sys.path for its Blender-side helpers."""
     if os.environ.get(ISOLATED):
-        for path in (REPO / "tests", REPO / "examples"):
+        for path in (REPO / "examples",):
             if str(path) not in sys.path:
                 sys.path.append(str(path))
         return
@@ -182,8 +180,7 @@ def blender_material(name: str, material: Material | None, medium: Medium | None
 
 def add_mesh(mesh: Mesh, materials: dict[str, Material], media: dict[str, Medium]) -> None:
     import bpy
-
-    from helpers.bpy_helpers import new_object
+    from bpy_helpers import new_object
 
     if mesh.normals is not None:
         raise NotImplementedError(f"mesh {mesh.name}: shading normals")
@@ -324,7 +321,7 @@ def build_scene(haze: Scene):
 
 
 def timed_render(scene, path: Path, samples: int, max_bounces: int, seed: int, threads: int) -> float:
-    from helpers.bpy_helpers import configure_cycles, render_exr
+    from bpy_helpers import configure_cycles, render_exr
 
     configure_cycles(scene, samples, max_bounces, seed, threads)
     start = time.perf_counter()

@@ -41,7 +41,7 @@ MAX_BOUNCES = 3  # as tests/test_addon_hdri.py
 
 BODY = r'''
 import time
-from helpers import bpy_helpers as H
+import bpy_helpers as H
 import blender_materials as M
 
 CONFIGURE = {"cycles": H.configure_cycles, "haze": H.configure_haze}

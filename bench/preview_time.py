@@ -44,7 +44,7 @@ import io
 import pstats
 import time
 import bpy
-from helpers import bpy_helpers as H
+import bpy_helpers as H
 import blender_cornell as C
 session = H.addon_module("session")
 

@@ -12,7 +12,7 @@ their noise sigma, block z-scores, chi-square. Prints the figures and the verdic
 The suite runs the same comparison at these settings (test_addon_procedural_volume's slow
 tests, which import the Blender script below); this command prints the figures and takes other
 run counts, sample counts and sizes. The script runs with tests/ on its sys.path (run_blender)
-and imports the Blender-side helpers of tests/helpers/bpy_helpers.py there.
+and imports the Blender-side helpers of examples/bpy_helpers.py there.
 """
 
 from __future__ import annotations
@@ -36,7 +36,7 @@ _BODY = r'''
 import math
 import os
 import bpy
-from helpers import bpy_helpers as H
+import bpy_helpers as H
 import blender_cornell as C
 export_scene = H.addon_module("export.scene").export_scene
 

@@ -17,13 +17,13 @@ import bpy
 import numpy as np
 
 REPO = Path(__file__).resolve().parents[1]
-for _path in (REPO, REPO / "examples", REPO / "tests"):  # tests/helpers/bpy_helpers: shared builders
+for _path in (REPO, REPO / "examples"):  # examples/bpy_helpers: shared builders
     if str(_path) not in sys.path:  # appended: an installed Haze's renderer comes first
         sys.path.append(str(_path))
 
 import blender_cornell as C  # noqa: E402
+import bpy_helpers as H  # noqa: E402
 
-from helpers import bpy_helpers as H  # noqa: E402
 from renderer.imageio import write_exr  # noqa: E402
 
 # ------------------------------------------------------------------ textured Cornell box

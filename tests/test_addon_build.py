@@ -110,7 +110,7 @@ def main():
     bpy.ops.extensions.package_install_files(filepath=zip_path, repo="user_default", enable_on_install=True)
     import addon_utils
     enabled = [m.__name__ for m in addon_utils.modules() if m.__name__.endswith(".haze")]
-    from helpers import bpy_helpers as H
+    import bpy_helpers as H
     scene = bpy.context.scene
     for obj in list(scene.collection.all_objects):
         if obj.type == "MESH":

@@ -22,7 +22,7 @@ pytestmark = [pytest.mark.bpy, pytest.mark.slow]
 BODY = r'''
 import bpy
 import numpy as np
-from helpers import bpy_helpers as H
+import bpy_helpers as H
 
 
 def main():

@@ -50,7 +50,7 @@ SAMPLES = {
 BODY = rf'''
 import math
 import bpy
-from helpers import bpy_helpers as H
+import bpy_helpers as H
 import blender_cornell as C
 
 SIZE = {SIZE}

@@ -26,7 +26,7 @@ BODY = r'''
 import math
 from dataclasses import replace
 import bpy
-from helpers import bpy_helpers as H
+import bpy_helpers as H
 from bpy_extras.object_utils import world_to_camera_view
 from mathutils import Vector
 
@@ -643,7 +643,7 @@ def test_groups_muted_nodes_and_unsupported_closures(exported):
 
 REGISTER_BODY = r'''
 import bpy
-from helpers import bpy_helpers as H
+import bpy_helpers as H
 
 
 def engine_selectable():

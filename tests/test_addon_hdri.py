@@ -47,7 +47,7 @@ PROJECTIONS = tuple(SAMPLES)
 BODY = rf'''
 import os
 import time
-from helpers import bpy_helpers as H
+import bpy_helpers as H
 import blender_materials as M
 
 SIZE = {SIZE}

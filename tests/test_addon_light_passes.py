@@ -55,7 +55,7 @@ BODY = rf'''
 import math
 import os
 import bpy
-from helpers import bpy_helpers as H
+import bpy_helpers as H
 import blender_cornell as C
 from helpers import pass_stage as S
 

@@ -111,7 +111,7 @@ BODY = r'''
 import types
 
 import bpy
-from helpers import bpy_helpers as H
+import bpy_helpers as H
 
 
 class Layout:

@@ -41,7 +41,7 @@ MEAN_PASSES = ("Normal", "Mist", "Denoising Normal", "Denoising Albedo")
 
 BODY = rf'''
 import os
-from helpers import bpy_helpers as H
+import bpy_helpers as H
 from helpers import pass_stage as S
 
 SIZE = {SIZE!r}
@@ -210,7 +210,7 @@ def test_unrequested_passes_are_absent(renders):
 DENOISE_BODY = r'''
 import os
 import bpy
-from helpers import bpy_helpers as H
+import bpy_helpers as H
 import blender_cornell as C
 
 

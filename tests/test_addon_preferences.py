@@ -18,7 +18,7 @@ pytestmark = [pytest.mark.bpy]  # the real-compile test is also marked slow
 BODY = r'''
 import subprocess, time
 import bpy
-from helpers import bpy_helpers as H
+import bpy_helpers as H
 
 B = H.addon_module("background")
 kernel_cache = H.addon_module("kernel_cache")
@@ -227,7 +227,7 @@ def test_ready_and_failed_states(prefs_run):
 REAL_BODY = r'''
 import time
 import bpy
-from helpers import bpy_helpers as H
+import bpy_helpers as H
 
 B = H.addon_module("background")
 

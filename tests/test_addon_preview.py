@@ -26,7 +26,7 @@ pytestmark = [pytest.mark.bpy, pytest.mark.slow]
 BODY = r'''
 import time
 import bpy
-from helpers import bpy_helpers as H
+import bpy_helpers as H
 import blender_cornell as C
 session = H.addon_module("session")
 

@@ -27,7 +27,7 @@ import time
 import bpy  # first: it puts Blender's own modules (addon_utils) on sys.path
 import addon_utils
 import numba.core.event as numba_event
-from helpers import bpy_helpers as H
+import bpy_helpers as H
 import blender_cornell as C
 
 # The installed extension's package, or (HAZE_TEST_ADDON=clone) the checkout's add-on folder
@@ -158,7 +158,7 @@ def test_recreated_named_tuple_classes_still_match_the_cache(reload_run):
 EXTENSION_BODY = r'''
 import bpy
 import addon_utils
-from helpers import bpy_helpers as H
+import bpy_helpers as H
 
 
 def f12(name):

@@ -21,7 +21,7 @@ pytestmark = [pytest.mark.bpy, pytest.mark.slow]
 
 BODY = r'''
 import bpy
-from helpers import bpy_helpers as H
+import bpy_helpers as H
 import blender_cornell as C
 
 OUT = os.getcwd()

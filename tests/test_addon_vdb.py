@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 import bpy
 
-from helpers import bpy_helpers as H
+import bpy_helpers as H
 import blender_cornell as C
 
 H.enable_addon()

@@ -52,7 +52,7 @@ from pathlib import Path
 import numpy as np
 import bpy
 
-from helpers import bpy_helpers as H
+import bpy_helpers as H
 import blender_cornell as C
 
 RUNS, SIZE, BOUNCES, SAMPLES = {runs}, {size}, {bounces}, {samples}

@@ -40,7 +40,7 @@ SURFACE = ("Diffuse", "Glossy", "Transmission")
 
 BODY = rf'''
 import os
-from helpers import bpy_helpers as H
+import bpy_helpers as H
 from helpers import pass_stage as S
 
 SIZE = {SIZE!r}

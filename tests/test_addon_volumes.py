@@ -295,7 +295,7 @@ import bpy
 from pathlib import Path
 from mathutils import Matrix
 
-from helpers import bpy_helpers as H
+import bpy_helpers as H
 import blender_cornell as C
 
 H.enable_addon()
@@ -1019,7 +1019,7 @@ import math
 import bpy
 import numpy as np
 from pathlib import Path
-from helpers import bpy_helpers as H
+import bpy_helpers as H
 import blender_gallery as G
 
 RUNS, SIZE, SAMPLES, BOUNCES = {runs}, {size}, {samples}, {bounces}
@@ -1074,7 +1074,7 @@ FIRE_BODY = r'''
 import bpy
 import numpy as np
 from pathlib import Path
-from helpers import bpy_helpers as H
+import bpy_helpers as H
 import blender_cornell as C
 
 RUNS, SIZE, SAMPLES = {runs}, {size}, {samples}

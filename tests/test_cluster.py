@@ -187,7 +187,7 @@ ANIMATION_BODY = r'''
 import glob
 import time
 import bpy
-from helpers import bpy_helpers as H
+import bpy_helpers as H
 
 
 def main():

@@ -9,6 +9,7 @@ wheel) or addon/ (the zip) may import the repository's other folders.
 from __future__ import annotations
 
 import ast
+import re
 from pathlib import Path
 
 import pytest
@@ -43,6 +44,18 @@ def test_addon_imports_itself_relatively():
 
 def test_renderer_imports_nothing_of_the_repository():
     assert offending_imports("renderer", ("addon",) + REPOSITORY_ONLY) == []
+
+
+TEST_IMPORT = re.compile(r"^\s*(from|import)\s+(tests|helpers)\b", re.M)
+
+
+def test_bench_and_examples_import_nothing_of_the_tests():
+    """Benchmarks and examples stand on their own; this also reads the Blender scripts they
+    hold in strings, which the import walk above cannot see."""
+    found = [f"{path.relative_to(REPO)}: {match.group(0).strip()}"
+             for folder in ("bench", "examples") for path in sorted((REPO / folder).rglob("*.py"))
+             for match in TEST_IMPORT.finditer(path.read_text())]
+    assert found == []
 
 
 @pytest.mark.parametrize("source, caught", [

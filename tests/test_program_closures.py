@@ -52,7 +52,7 @@ import math
 import os
 import bpy
 import numpy as np
-from helpers import bpy_helpers as H
+import bpy_helpers as H
 import blender_cornell as C
 from renderer.imageio import write_exr
 

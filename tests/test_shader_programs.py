@@ -43,7 +43,7 @@ TOLERANCE = 1e-4
 BAKE_BODY = rf'''
 import bpy
 import numpy as np
-from helpers import bpy_helpers as H
+import bpy_helpers as H
 import blender_cornell as C
 import bake_cases_textures as T
 import bake_cases_nodes as N
@@ -409,7 +409,7 @@ SCENE_BODY = rf'''
 import math
 import os
 import bpy
-from helpers import bpy_helpers as H
+import bpy_helpers as H
 import blender_cornell as C
 
 SIZE = {SIZE}

@@ -38,8 +38,7 @@ def build_stage(size: tuple[int, int], balls: bool = True):
     floor: a face coplanar with the floor would make the order of the two hits arbitrary),
     the sun and the camera; with `balls`, a diffuse ball and the clear glass ball too."""
     import blender_cornell as C
-
-    from helpers import bpy_helpers as H
+    import bpy_helpers as H
 
     scene = C.clear_scene()
     scene.render.use_compositing = False
@@ -79,7 +78,7 @@ def write_multilayer(scene, path: str) -> str:
 def render_runs(scene, runs: int, samples: int, max_bounces: int = 3) -> dict[str, list[str]]:
     """Blender side: `runs` renders of `scene` by Cycles and as many by Haze (seeds 1 .. runs,
     `samples` each), multilayer EXRs in the working folder: {"cycles": paths, "haze": paths}."""
-    from helpers import bpy_helpers as H
+    import bpy_helpers as H
 
     out: dict[str, list[str]] = {"cycles": [], "haze": []}
     for run in range(runs):

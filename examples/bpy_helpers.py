@@ -1,7 +1,7 @@
-"""Blender-side helpers for the tests' Blender scripts (the bpy module).
+"""Blender-side helpers for the tests' and benchmarks' Blender scripts (the bpy module).
 
-The scripts run_blender (bench/blender.py) writes import this file with tests/ and
-examples/ on sys.path but not the repository root, so that Haze, and with it `renderer`,
+The scripts run_blender (bench/blender.py) writes import this file (`import bpy_helpers`)
+with tests/ and examples/ on sys.path but not the repository root, so that Haze, and with it `renderer`,
 comes from the installed extension: nothing here imports the repository's packages, and bpy
 is imported inside the functions, so pytest can import this file without Blender. Scene
 builders and render helpers: enable_addon, addon_module, configure_cycles, render_exr, ...
