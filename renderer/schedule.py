@@ -122,15 +122,18 @@ class Schedule:
             if not self._busy():
                 break
             if time.perf_counter() >= self.stop_at:
-                if self.film.spp == 0 and not self.merger.waiting and not self.note:
-                    self.note = "the time limit passed before the first samples were done"
                 break
             if self._collect(self._wait_time()) and self.pacer.merged():
                 # Checked when shown: the estimate reads the whole image.
                 self.target_met = target_reached(self.film, self.target_error)
                 yield self.progress_now()
         merged = self._finish()
-        if merged | self.merger.merge_the_rest() or self.pacer.pending or self.note or not self.pacer.shown:
+        merged |= self.merger.merge_the_rest()
+        # After the last merge, whichever way the loop ended: a unit stopped at the limit
+        # can leave nothing busy before the grace period is over.
+        if self.film.spp == 0 and not self.note and self.clock.left() <= 0:
+            self.note = "the time limit passed before the first samples were done"
+        if merged or self.pacer.pending or self.note or not self.pacer.shown:
             yield self.progress_now()
 
     def _stopping(self) -> bool:
