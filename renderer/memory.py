@@ -74,7 +74,7 @@ def check_render_memory(film: Film, workers: int, available: int | None = None) 
 
 # What a render holds beside the film, per item of the scene (bytes per byte of the scene's
 # arrays, or per triangle): a grid or image is held by the scene and again by its compiled
-# table in this process (the workers map the shipment's copy, shared, README "Memory"); an
+# table in this process (the workers map the shipment's copy, shared); an
 # environment map adds its sampling tables (float64 pdf and cdfs per texel: about three
 # times the float32 RGB map); a triangle costs its float64 corners and edges in the compiled
 # geometry (9 * 8 * 2 bytes), its light-table row and Embree's BVH node share (about 100).

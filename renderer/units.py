@@ -18,7 +18,7 @@ if TYPE_CHECKING:  # the film and the tracer load numba: planning units (rendere
     from .integrator.wavefront import Tracer
 
 # Unit size rule: about UNIT_PATHS path samples per unit: 0.1-0.2 s on one core for the
-# Cornell box with or without fog (0.9-1.2 M samples/s per core, README), up to about 1 s
+# Cornell box with or without fog (0.9-1.2 M samples/s per core, docs/benchmarks.md), up to about 1 s
 # for dense grids (3.6-8.7 us per sample). Small enough that a time limit wastes little
 # and a killed worker loses little; large enough that the per-unit overhead (a task and a
 # film sent back) stays small against the tracing.

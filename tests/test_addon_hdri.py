@@ -9,7 +9,7 @@ image read as a mirror ball. The sky is in view, so the direction mapping and th
 are checked pixel by pixel as well as the lighting.
 
 It also prints each renderer's noise per sample, relMSE x spp (relMSE estimated from the
-spread of the K renders per pixel), and the seconds each took, for the README's figures;
+spread of the K renders per pixel), and the seconds each took, for the benchmark report's figures;
 it asserts nothing about them. Four runs make a rough estimate (the noise is heavy-tailed
 around the sun); python -m bench hdri_variance measures it from more. Printed here (2-core VM,
 loaded): Haze 0.42, Cycles 0.090 per sample with hashed random numbers and an environment

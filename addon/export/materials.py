@@ -1,6 +1,6 @@
 """Blender materials and world shaders to Haze Materials and Media (Cycles' semantics).
 
-Rules that follow from how Cycles shades (see the add-on section of README.md):
+Rules that follow from how Cycles shades (see docs/blender.md):
 
 * Surface linked: the surface is opaque wherever no lobe exists. Cycles terminates a path on
   a face side that has no BSDF (e.g. the back of a one-sided emitter), so Haze gets a black
