@@ -48,6 +48,7 @@ import numpy as np
 
 from renderer.film import Film
 from renderer.scene import Scene
+from renderer.validate.scene import MAX_SPP
 
 from .cycles_reference import command as cycles_command
 from .metrics import TARGETS, Curve, Reference, film_reference, stack_reference
@@ -63,7 +64,7 @@ MEASURE_SEED = 1
 REFERENCE_SEED = 1000  # the Haze reference uses 1000, 1001, ... (one seed per extension)
 CYCLES_SEED = 1
 CYCLES_REFERENCE_SEEDS = (101, 102, 103, 104)
-HUGE_SPP = 10**8  # "until the time budget runs out"
+HUGE_SPP = MAX_SPP  # "until the time budget runs out": the most samples a scene may ask
 
 
 # ------------------------------------------------------------------------------ curves
