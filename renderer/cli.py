@@ -24,7 +24,15 @@ lie under a file, or be one of the scene's input files (or a link to one); this 
 before rendering. The PNG preview (OUTPUT with .png) replaces an existing file only if Haze
 wrote it, unless --overwrite is given. Ctrl-C stops the render, writes the samples so far
 and exits with status 130.
+
+exit status: 0 the image is written; 1 the render failed (its workers kept dying, a cluster
+error, a file that could not be written, out of memory; samples done are still written);
+2 the command or the scene was refused before rendering (bad options, an invalid scene, an
+unsafe output); 130 Ctrl-C (the samples so far written); 128+N stopped by signal N
+(SIGTERM 143, SIGHUP 129).
 """
+PROGRESS_MODES = ("auto", "bar", "plain", "none")
+PLAIN_INTERVAL = 10.0  # seconds between plain progress lines (logs of farm jobs, CI)
 
 
 def _say(text: str, end: str = "\n") -> None:
@@ -39,6 +47,7 @@ def _say(text: str, end: str = "\n") -> None:
 def _parser() -> argparse.ArgumentParser:
     invoked = "haze" if Path(sys.argv[0]).stem == "haze" else "python -m renderer"  # entry point or -m
     p = argparse.ArgumentParser(prog=invoked, description="Haze volumetric path tracer")
+    p.add_argument("--version", action="version", version=f"%(prog)s {haze_version()}")
     sub = p.add_subparsers(dest="command", required=True)
     r = sub.add_parser(
         "render",
@@ -68,8 +77,60 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument(
         "--overwrite", action="store_true", help="let the PNG preview replace a file Haze did not write"
     )
+    r.add_argument("--progress", choices=PROGRESS_MODES, default="auto",
+                   help="progress on stderr: a bar redrawn in place, plain lines (one every "
+                   f"{PLAIN_INTERVAL:g} s and the last, for logs), or none; auto = the bar on a "
+                   "terminal, plain lines otherwise")
     return p
 
+
+def haze_version() -> str:
+    """The installed package's version (pip, the extension's wheel), else the source's."""
+    from importlib import metadata
+
+    try:
+        return metadata.version("haze-renderer")
+    except metadata.PackageNotFoundError:
+        from . import __version__
+
+        return __version__
+
+
+def progress_mode(requested: str, stream=None) -> str:
+    """The bar only where a terminal shows it; carriage returns garble a log file."""
+    if requested != "auto":
+        return requested
+    stream = sys.stderr if stream is None else stream
+    try:
+        return "bar" if stream.isatty() else "plain"
+    except (AttributeError, ValueError):  # a replaced or closed stream
+        return "plain"
+
+
+class ProgressPrinter:
+    """Progress lines on stderr in one of PROGRESS_MODES (resolved: bar, plain or none)."""
+
+    def __init__(self, mode: str, total: int) -> None:
+        self.mode, self.total = mode, total
+        self.last_line = -float("inf")
+        self.pending = ""
+
+    def show(self, done: int, elapsed: float, err: float) -> None:
+        text = _bar(done, self.total, elapsed, err)
+        if self.mode == "bar":
+            _say(text, end="")
+        elif self.mode == "plain":
+            self.pending = text.lstrip("\r")
+            if elapsed - self.last_line >= PLAIN_INTERVAL:
+                self.last_line = elapsed
+                _say(self.pending)
+                self.pending = ""
+
+    def finish(self) -> None:
+        if self.mode == "bar":
+            _say("")
+        elif self.mode == "plain" and self.pending:
+            _say(self.pending)  # the last state, once
 
 def _finite_float(text: str) -> float:
     """A finite number: argparse refuses nan and inf with the option's name."""
@@ -173,22 +234,29 @@ def _outputs_problem(args, inputs: list[Path]) -> str | None:
 
 
 class CompileTicker:
-    """'compiling kernels (first run only): N s' on stderr, once a second, until stopped."""
+    """'compiling kernels (first run only): N s' on stderr, once a second in place, until
+    stopped; plain: one line when it starts and one when it is done (for logs); quiet: none."""
 
-    def __init__(self, interval: float = 1.0):
+    def __init__(self, interval: float = 1.0, plain: bool = False, quiet: bool = False):
         self.interval = interval
+        self.plain, self.quiet = plain, quiet
         self._done = threading.Event()
         self._thread: threading.Thread | None = None
 
     def start(self, names: list[str]) -> None:
         t0 = time.perf_counter()
+        if self.quiet:
+            return
+        if self.plain:
+            _say("compiling kernels (first run only)")
 
         def tick() -> None:
             while True:
-                _say(f"\rcompiling kernels (first run only): {time.perf_counter() - t0:.0f} s", end="")
+                if not self.plain:
+                    _say(f"\rcompiling kernels (first run only): {time.perf_counter() - t0:.0f} s", end="")
                 if self._done.wait(self.interval):
                     break
-            _say(f"\rcompiled kernels in {time.perf_counter() - t0:.1f} s")
+            _say(f"{'' if self.plain else chr(13)}compiled kernels in {time.perf_counter() - t0:.1f} s")
 
         self._thread = threading.Thread(target=tick, daemon=True)
         self._thread.start()
@@ -256,18 +324,20 @@ def _render_and_write(args, scene) -> int:
     t0 = time.perf_counter()
     last = None
     interrupted = False
-    ticker = CompileTicker()
+    mode = progress_mode(args.progress)
+    printer = ProgressPrinter(mode, s.spp)
+    ticker = CompileTicker(plain=mode != "bar", quiet=mode == "none")
     try:
         for last in render_progressive(scene, workers=args.workers, target_error=args.target_error,
                                        on_compile=ticker.start, in_process=False, cluster=args.cluster):
             ticker.stop()
-            _say(_bar(last.spp, s.spp, last.elapsed, last.error_estimate), end="")
+            printer.show(last.spp, last.elapsed, last.error_estimate)
     except KeyboardInterrupt:
         interrupted = True
         _say("\ninterrupted: writing the samples so far")
     finally:
         ticker.stop()
-    _say("")
+    printer.finish()
     if last is None or (last.failed and last.film.spp == 0):
         _say(f"error: {last.note if last is not None else 'no samples were rendered'}")
         return EXIT_INTERRUPTED if interrupted else 1
