@@ -210,7 +210,7 @@ class RenderSession:
         exported.scene.film.aovs = needs_aovs(self.passes, self.denoise)
         exported.scene.film.light_aovs = needs_light_aovs(self.passes)
         self.camera = exported.scene.camera
-        self._check_memory(exported.scene)
+        workers = self._check_memory(exported.scene)
         render_progressive = self._renderer
         if render_progressive is None:
             from renderer.render import render_progressive
@@ -218,7 +218,7 @@ class RenderSession:
         self.engine.update_stats("", "Haze | Rendering")
         # Always the worker pool, one worker included: Esc and the time limit can only stop a
         # numba kernel in another process (the pool's workers persist across renders).
-        frames = render_progressive(exported.scene, workers=self._workers(),
+        frames = render_progressive(exported.scene, workers=workers,
                                     target_error=float(self.settings.target_error), validate=False,
                                     on_compile=self._on_compile, in_process=False,
                                     cluster=self._cluster())
@@ -234,15 +234,27 @@ class RenderSession:
         """The Dask scheduler's address, "local", or "" for this machine's worker pool."""
         return str(getattr(self.settings, "cluster", "")).strip()
 
-    def _check_memory(self, scene) -> None:
-        """Refuse a render the machine has no memory for, before it starts (not a crash halfway)."""
+    def _check_memory(self, scene) -> int:
+        """The worker processes to render with: the Workers setting, capped at the cores and
+        memory this machine has for the scene (said once when fewer); a render that does not
+        fit even so is refused before it starts, naming its largest item (the film, a grid,
+        an image, the environment map...), not a crash halfway."""
         from renderer.errors import SceneError
-        from renderer.memory import check_render_memory
+        from renderer.memory import check_scene_memory, workers_allowed
 
+        asked = self._workers()
+        if self._cluster():  # the cluster's workers are on other machines: this one holds the scene
+            workers = asked
+        else:
+            workers = workers_allowed(scene, asked)
+            if workers < asked and not self.preview:
+                self.engine.report({"WARNING"}, f"Haze: rendering with {workers} worker processes, not "
+                                   f"{asked}: as many as this machine's cores and memory allow")
         try:
-            check_render_memory(scene.film, self._workers())
+            check_scene_memory(scene, 1 if self._cluster() else workers)
         except SceneError as error:
             raise ExportError("Haze", str(error)) from error
+        return workers
 
     def _on_compile(self, names: list[str]) -> None:
         """The kernels are not in the cache: say why the first image takes minutes."""

@@ -221,6 +221,31 @@ def test_a_render_too_large_for_memory_is_refused_before_it_starts(monkeypatch):
     assert renderer.kwargs is None and engine.calls == ["begin", "end"]
 
 
+def test_a_large_image_is_counted_by_the_memory_check(monkeypatch):
+    """Not only the film: a scene's images count, and the refusal names the largest item."""
+    import renderer.memory
+    from renderer.shading.program import ImageTexture
+
+    scene = valid_scene()  # zeros: pages the test never touches cost no memory
+    scene.images = [ImageTexture("Huge", np.zeros((4096, 4096, 4), np.float32))]  # 268 MB of texels
+    monkeypatch.setattr(renderer.memory, "available_memory_bytes", lambda: 600_000_000)
+    engine = run(FakeEngine(), renderer := FakeRenderer(), export=exporter(scene))
+    (kind, text), = engine.reports
+    assert kind == "ERROR" and "Huge" in text, text
+    assert renderer.kwargs is None
+
+
+def test_workers_are_capped_at_what_memory_allows_and_it_is_said(monkeypatch):
+    import renderer.memory
+
+    per_worker = renderer.memory.PROCESS_BYTES
+    monkeypatch.setattr(renderer.memory, "usable_cores", lambda: 8)
+    monkeypatch.setattr(renderer.memory, "available_memory_bytes", lambda: int(2.5 * per_worker))
+    engine = run(FakeEngine(), renderer := FakeRenderer(), workers=4)
+    assert renderer.kwargs["workers"] == 2
+    assert any(kind == "WARNING" and "2 worker processes, not 4" in text for kind, text in engine.reports)
+
+
 def test_renderer_failure_is_reported_not_raised():
     engine = run(FakeEngine(), renderer := FakeRenderer(fail_at=2, error=ValueError("kernel exploded")))
     assert ("ERROR", "Haze: ValueError: kernel exploded") in engine.reports
