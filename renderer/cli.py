@@ -11,6 +11,7 @@ import threading
 import time
 from pathlib import Path
 
+from .cli_output import PLAIN_INTERVAL, PROGRESS_MODES, CompileTicker, ProgressPrinter, progress_mode, say
 from .cluster import ClusterError  # dask itself loads only for a --cluster render
 from .cores import usable_cores
 from .errors import SceneError
@@ -31,17 +32,8 @@ error, a file that could not be written, out of memory; samples done are still w
 unsafe output); 130 Ctrl-C (the samples so far written); 128+N stopped by signal N
 (SIGTERM 143, SIGHUP 129).
 """
-PROGRESS_MODES = ("auto", "bar", "plain", "none")
-PLAIN_INTERVAL = 10.0  # seconds between plain progress lines (logs of farm jobs, CI)
 
 
-def _say(text: str, end: str = "\n") -> None:
-    """Write to stderr; a closed pipe or a full disk there drops the text, never the render
-    (the image is what matters, and the exit status says how it went)."""
-    try:
-        print(text, end=end, file=sys.stderr, flush=True)
-    except (OSError, ValueError):  # EPIPE, ENOSPC, EIO; ValueError: stderr closed
-        pass
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -96,42 +88,6 @@ def haze_version() -> str:
         return __version__
 
 
-def progress_mode(requested: str, stream=None) -> str:
-    """The bar only where a terminal shows it; carriage returns garble a log file."""
-    if requested != "auto":
-        return requested
-    stream = sys.stderr if stream is None else stream
-    try:
-        return "bar" if stream.isatty() else "plain"
-    except (AttributeError, ValueError):  # a replaced or closed stream
-        return "plain"
-
-
-class ProgressPrinter:
-    """Progress lines on stderr in one of PROGRESS_MODES (resolved: bar, plain or none)."""
-
-    def __init__(self, mode: str, total: int) -> None:
-        self.mode, self.total = mode, total
-        self.last_line = -float("inf")
-        self.pending = ""
-
-    def show(self, done: int, elapsed: float, err: float) -> None:
-        text = _bar(done, self.total, elapsed, err)
-        if self.mode == "bar":
-            _say(text, end="")
-        elif self.mode == "plain":
-            self.pending = text.lstrip("\r")
-            if elapsed - self.last_line >= PLAIN_INTERVAL:
-                self.last_line = elapsed
-                _say(self.pending)
-                self.pending = ""
-
-    def finish(self) -> None:
-        if self.mode == "bar":
-            _say("")
-        elif self.mode == "plain" and self.pending:
-            _say(self.pending)  # the last state, once
-
 def _finite_float(text: str) -> float:
     """A finite number: argparse refuses nan and inf with the option's name."""
     try:
@@ -148,16 +104,6 @@ def _nonnegative_float(text: str) -> float:
     if value < 0:
         raise argparse.ArgumentTypeError(f"must be 0 (off) or more, got {text!r}")
     return value
-
-
-def _bar(done: int, total: int, elapsed: float, err: float) -> str:
-    frac = min(1.0, done / max(total, 1))
-    width = 30
-    filled = int(frac * width)
-    eta = elapsed / frac - elapsed if frac > 0 else float("nan")
-    err_s = f"  relMSE~{err:.2e}" if err == err else ""
-    return (f"\r[{'#' * filled}{'.' * (width - filled)}] {done}/{total} spp  {elapsed:6.1f}s elapsed"
-            f"  ETA {eta:5.1f}s{err_s}")
 
 
 def _check(args) -> str | None:
@@ -233,41 +179,6 @@ def _outputs_problem(args, inputs: list[Path]) -> str | None:
     return _png_problem(args.output.with_suffix(".png"), inputs, args.overwrite)
 
 
-class CompileTicker:
-    """'compiling kernels (first run only): N s' on stderr, once a second in place, until
-    stopped; plain: one line when it starts and one when it is done (for logs); quiet: none."""
-
-    def __init__(self, interval: float = 1.0, plain: bool = False, quiet: bool = False):
-        self.interval = interval
-        self.plain, self.quiet = plain, quiet
-        self._done = threading.Event()
-        self._thread: threading.Thread | None = None
-
-    def start(self, names: list[str]) -> None:
-        t0 = time.perf_counter()
-        if self.quiet:
-            return
-        if self.plain:
-            _say("compiling kernels (first run only)")
-
-        def tick() -> None:
-            while True:
-                if not self.plain:
-                    _say(f"\rcompiling kernels (first run only): {time.perf_counter() - t0:.0f} s", end="")
-                if self._done.wait(self.interval):
-                    break
-            _say(f"{'' if self.plain else chr(13)}compiled kernels in {time.perf_counter() - t0:.1f} s")
-
-        self._thread = threading.Thread(target=tick, daemon=True)
-        self._thread.start()
-
-    def stop(self) -> None:
-        if self._thread is not None:
-            self._done.set()
-            self._thread.join()
-            self._thread = None
-
-
 def render_command(args) -> int:
     from .memory import check_scene_memory, workers_allowed
     from .scenefile import load_scene_and_inputs
@@ -275,13 +186,13 @@ def render_command(args) -> int:
 
     problem = _check(args)
     if problem:
-        _say(f"error: {problem}")
+        say(f"error: {problem}")
         return 2
     if args.denoise:
         from .denoise import available
 
         if not available():
-            _say("error: --denoise needs Open Image Denoise, which was not found (it comes with "
+            say("error: --denoise needs Open Image Denoise, which was not found (it comes with "
                  "Blender's bpy module; HAZE_OIDN_LIBRARY may name the library)")
             return 2
     if args.cluster:  # first: an unreachable scheduler is an error in seconds, before any loading
@@ -291,13 +202,13 @@ def render_command(args) -> int:
     scene, inputs = load_scene_and_inputs(args.scene)
     problem = _outputs_problem(args, inputs)
     if problem:
-        _say(f"error: {problem}")
+        say(f"error: {problem}")
         return 2
     scene.film.aovs = bool(args.denoise)  # the denoiser's albedo and normal passes
     if not args.cluster:  # a cluster's workers are on other machines
         allowed = workers_allowed(scene, args.workers)
         if allowed < args.workers:
-            _say(f"warning: rendering with {allowed} worker processes, not {args.workers}: "
+            say(f"warning: rendering with {allowed} worker processes, not {args.workers}: "
                  f"as many as this machine's cores and memory allow")
             args.workers = allowed
     check_scene_memory(scene, args.workers if not args.cluster else 1)
@@ -334,12 +245,12 @@ def _render_and_write(args, scene) -> int:
             printer.show(last.spp, last.elapsed, last.error_estimate)
     except KeyboardInterrupt:
         interrupted = True
-        _say("\ninterrupted: writing the samples so far")
+        say("\ninterrupted: writing the samples so far")
     finally:
         ticker.stop()
     printer.finish()
     if last is None or (last.failed and last.film.spp == 0):
-        _say(f"error: {last.note if last is not None else 'no samples were rendered'}")
+        say(f"error: {last.note if last is not None else 'no samples were rendered'}")
         return EXIT_INTERRUPTED if interrupted else 1
     image = _denoised(last, scene.camera) if args.denoise else last.image
     _write(write_exr, args.output, image)
@@ -350,15 +261,15 @@ def _render_and_write(args, scene) -> int:
         msg += f" and {png}"
     seconds = time.perf_counter() - t0
     samples = int(last.film.n.sum())  # traced: a stop in mid-pass leaves some tiles a unit ahead
-    _say(msg)
+    say(msg)
     if last.note and not last.failed:
-        _say(f"warning: {last.note}")
+        say(f"warning: {last.note}")
     if last.film.nonfinite[0]:
         bad = int(last.film.nonfinite[0])
-        _say(f"warning: {bad} path values were NaN or infinite and were counted as 0")
-    _say(f"{last.spp} spp, {seconds:.2f} s, {samples / seconds / 1e6:.3f} M samples/s")
+        say(f"warning: {bad} path values were NaN or infinite and were counted as 0")
+    say(f"{last.spp} spp, {seconds:.2f} s, {samples / seconds / 1e6:.3f} M samples/s")
     if last.failed:  # the samples done are written, but the render did not finish
-        _say(f"error: {last.note}")
+        say(f"error: {last.note}")
         return 1
     return EXIT_INTERRUPTED if interrupted else 0
 
@@ -377,7 +288,7 @@ def _denoised(last, camera):
     from .passes import film_passes
 
     passes = film_passes(last.film, camera, ("Denoising Albedo", "Denoising Normal"))
-    _say("denoising")
+    say("denoising")
     return denoise(last.image, passes["Denoising Albedo"], passes["Denoising Normal"])
 
 
@@ -433,24 +344,24 @@ def _main(args) -> int:
         if args.command == "render":
             return render_command(args)
     except _Stopped as stopped:
-        _say(f"\nerror: stopped by {signal.Signals(stopped.signum).name}")
+        say(f"\nerror: stopped by {signal.Signals(stopped.signum).name}")
         return 128 + stopped.signum
     except SceneError as e:
-        _say(f"error: {e}")
+        say(f"error: {e}")
         return 2
     except ClusterError as e:
-        _say(f"error: {e}")
+        say(f"error: {e}")
         return 1
     except FileNotFoundError as e:
-        _say(f"error: {e}")
+        say(f"error: {e}")
         return 2
     except OSError as e:  # e.g. the disk filled up while writing the image
-        _say(f"error: {e}")
+        say(f"error: {e}")
         return 1
     except MemoryError:  # the estimate before rendering was too low, or others took the memory
-        _say("error: out of memory while rendering; try a smaller film or fewer --workers")
+        say("error: out of memory while rendering; try a smaller film or fewer --workers")
         return 1
     except KeyboardInterrupt:  # while loading, or a second Ctrl-C while writing
-        _say("\ninterrupted")
+        say("\ninterrupted")
         return EXIT_INTERRUPTED
     return 1

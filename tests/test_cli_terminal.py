@@ -11,7 +11,7 @@ from pathlib import Path
 
 import renderer
 from examples.scenes import cornell_box
-from renderer import cli
+from renderer import cli, cli_output
 from renderer.scenefile import save_scene
 
 REPO = Path(__file__).resolve().parents[1]
@@ -42,15 +42,15 @@ class Terminal(io.StringIO):
 
 
 def test_auto_progress_is_a_bar_on_a_terminal_and_plain_lines_elsewhere():
-    assert cli.progress_mode("auto", Terminal()) == "bar"
-    assert cli.progress_mode("auto", io.StringIO()) == "plain"
-    assert cli.progress_mode("none", Terminal()) == "none"
+    assert cli_output.progress_mode("auto", Terminal()) == "bar"
+    assert cli_output.progress_mode("auto", io.StringIO()) == "plain"
+    assert cli_output.progress_mode("none", Terminal()) == "none"
 
 
 def test_plain_progress_is_one_line_per_interval_and_the_last(monkeypatch):
     said: list[tuple[str, str]] = []
-    monkeypatch.setattr(cli, "_say", lambda text, end="\n": said.append((text, end)))
-    printer = cli.ProgressPrinter("plain", total=64)
+    monkeypatch.setattr(cli_output, "say", lambda text, end="\n": said.append((text, end)))
+    printer = cli_output.ProgressPrinter("plain", total=64)
     for k, elapsed in enumerate((0.5, 3.0, 9.0, 10.6, 12.0, 20.0, 21.0)):
         printer.show(k + 1, elapsed, float("nan"))
     printer.finish()
@@ -59,7 +59,7 @@ def test_plain_progress_is_one_line_per_interval_and_the_last(monkeypatch):
     # One at the start, then at 10.6 s and 21.0 s (10 s apart), and the last state at the end.
     assert [line.split("]")[1].split()[0] for line in lines] == ["1/64", "4/64", "7/64"]
     said.clear()
-    quiet = cli.ProgressPrinter("none", total=64)
+    quiet = cli_output.ProgressPrinter("none", total=64)
     quiet.show(1, 50.0, 0.1)
     quiet.finish()
     assert said == []
